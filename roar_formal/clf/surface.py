@@ -1,0 +1,204 @@
+"""Surface syntax tree of Celf programs, as the parser produces it.
+
+Kinds, types and terms share one syntactic category (as in Twelf and Celf);
+the elaborator (``signature.py``) decides what each node is. Every node keeps
+its source position so later errors can point at it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, Optional, Union
+
+from ..errors import Pos
+
+
+@dataclass(frozen=True)
+class Node:
+    pos: Pos = field(compare=False, repr=False)
+
+
+@dataclass(frozen=True)
+class Id(Node):
+    """An identifier: constant, bound variable, or (upper case, free) implicit variable.
+
+    ``T`` alone is also read as this node; the elaborator turns it into top
+    where a type is expected and it is not bound.
+    """
+
+    name: str
+
+
+@dataclass(frozen=True)
+class TypeKw(Node):
+    """The keyword ``type``."""
+
+
+@dataclass(frozen=True)
+class One(Node):
+    """The multiplicative unit ``1``."""
+
+
+@dataclass(frozen=True)
+class Underscore(Node):
+    """``_``: a placeholder to be reconstructed."""
+
+
+@dataclass(frozen=True)
+class App(Node):
+    """``fn arg``, ``fn !arg`` or ``fn @arg``."""
+
+    fn: "Expr"
+    arg: "Expr"
+    mark: Optional[Literal["!", "@"]] = None
+
+
+@dataclass(frozen=True)
+class Lam(Node):
+    """``\\x. body`` (linear), ``\\@x. body`` (affine), ``\\!x. body`` (persistent)."""
+
+    var: str
+    body: "Expr"
+    mode: Literal["linear", "affine", "persistent"] = "linear"
+    ty: Optional["Expr"] = None
+
+
+@dataclass(frozen=True)
+class Pi(Node):
+    """``Pi x:A. B`` or ``Pi x. B`` (``ty`` is None)."""
+
+    var: str
+    ty: Optional["Expr"]
+    body: "Expr"
+
+
+@dataclass(frozen=True)
+class Exists(Node):
+    """``Exists x:A. S`` or ``Exists x. S``."""
+
+    var: str
+    ty: Optional["Expr"]
+    body: "Expr"
+
+
+@dataclass(frozen=True)
+class Arrow(Node):
+    """An implication ``left op right`` where left is the premise.
+
+    ``op`` is ``->`` (persistent), ``-o`` (linear) or ``-@`` (affine). Reversed
+    forms are normalised: ``B o- A`` becomes ``Arrow('-o', A, B, reversed=True)``.
+    """
+
+    op: Literal["->", "-o", "-@"]
+    left: "Expr"
+    right: "Expr"
+    reversed: bool = False
+
+
+@dataclass(frozen=True)
+class Tensor(Node):
+    left: "Expr"
+    right: "Expr"
+
+
+@dataclass(frozen=True)
+class With(Node):
+    left: "Expr"
+    right: "Expr"
+
+
+@dataclass(frozen=True)
+class Bang(Node):
+    """``!A``: persistent."""
+
+    body: "Expr"
+
+
+@dataclass(frozen=True)
+class Affine(Node):
+    """``@A``: affine."""
+
+    body: "Expr"
+
+
+@dataclass(frozen=True)
+class Monad(Node):
+    """``{S}``."""
+
+    body: "Expr"
+
+
+@dataclass(frozen=True)
+class Pair(Node):
+    """``<M, N>``."""
+
+    left: "Expr"
+    right: "Expr"
+
+
+@dataclass(frozen=True)
+class Proj(Node):
+    """``M #1`` or ``M #2``."""
+
+    body: "Expr"
+    index: Literal[1, 2]
+
+
+@dataclass(frozen=True)
+class Annot(Node):
+    """``(M : A)``."""
+
+    term: "Expr"
+    ty: "Expr"
+
+
+Expr = Union[Id, TypeKw, One, Underscore, App, Lam, Pi, Exists, Arrow, Tensor, With,
+             Bang, Affine, Monad, Pair, Proj, Annot]
+
+Bound = Union[int, Literal["*"]]
+
+
+@dataclass(frozen=True)
+class Decl(Node):
+    """``name : classifier.`` or ``name : classifier = definition.``"""
+
+    name: str
+    classifier: Expr
+    definition: Optional[Expr] = None
+
+
+@dataclass(frozen=True)
+class Query(Node):
+    """``#query d e l a A.``"""
+
+    depth: Bound
+    expected: Bound
+    look: Bound
+    attempts: Bound
+    goal: Expr
+
+
+@dataclass(frozen=True)
+class Exec(Node):
+    """``#exec n S.`` (``trace=False``) or ``#trace n S.`` (``trace=True``)."""
+
+    steps: Bound
+    start: Expr
+    trace: bool = False
+
+
+@dataclass(frozen=True)
+class Mode(Node):
+    """``#mode p + - .``"""
+
+    family: str
+    modes: tuple[Literal["+", "-", "*"], ...]
+
+
+Item = Union[Decl, Query, Exec, Mode]
+
+
+@dataclass(frozen=True)
+class Program:
+    file: str
+    items: tuple[Item, ...]

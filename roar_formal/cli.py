@@ -1,0 +1,48 @@
+"""``roar-verify``: the command-line front end.
+
+Each part of the toolkit contributes its sub-commands through a
+``register(app)`` function in its own ``commands`` module; this file only
+wires them together and turns user errors into located messages (no traceback).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+from rich.console import Console
+
+from .errors import RoarError
+
+app = typer.Typer(
+    name="roar-verify",
+    help="Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+err_console = Console(stderr=True, highlight=False)
+
+
+def _register_all() -> None:
+    from .clf import commands as clf_commands
+
+    for module in (clf_commands,):
+        module.register(app)
+
+
+_register_all()
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the app; user errors print ``file:line:col: message`` and exit 2."""
+    try:
+        app(args=argv, standalone_mode=True)
+    except RoarError as exc:
+        err_console.print(f"[bold red]error:[/] {exc.format()}", markup=True, soft_wrap=True)
+        sys.exit(2)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
