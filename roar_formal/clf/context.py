@@ -1,0 +1,239 @@
+"""The forward-chaining context: linear, affine and persistent facts and rules.
+
+Facts are hash-consed ground atoms, counted as a multiset per mode. Every fact
+is indexed by its family and by (family, position, argument) for each
+argument, so a premise whose argument is already known is matched by one
+dictionary lookup rather than a scan: that is what keeps a step's cost flat as
+the context grows. Rules in the context (continuations) are closures, indexed
+by the facts that could wake them.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Iterator, Optional
+
+from .rules import AFF, LIN, PERS, Template
+from .terms import Meta, Node, Root
+
+_rule_ids = itertools.count(1)
+
+
+class Bag:
+    """An insertion-ordered set with O(1) add, remove and random access."""
+
+    __slots__ = ("items", "pos")
+
+    def __init__(self) -> None:
+        self.items: list = []
+        self.pos: dict = {}
+
+    def add(self, x) -> None:
+        if x not in self.pos:
+            self.pos[x] = len(self.items)
+            self.items.append(x)
+
+    def discard(self, x) -> None:
+        i = self.pos.pop(x, None)
+        if i is None:
+            return
+        last = self.items.pop()
+        if i < len(self.items):
+            self.items[i] = last
+            self.pos[last] = i
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __contains__(self, x) -> bool:
+        return x in self.pos
+
+    def __iter__(self) -> Iterator:
+        return iter(self.items)
+
+    def rotated(self, start: int) -> Iterator:
+        """Iterate from position ``start`` cyclically (random scheduling without a scan)."""
+        items = self.items
+        n = len(items)
+        if n == 0:
+            return iter(())
+        start %= n
+        return itertools.chain(items[start:], items[:start])
+
+
+@dataclass(eq=False)
+class CtxRule:
+    """A live rule in the context: alternatives of one hypothesis plus its slot values."""
+
+    uid: int
+    alts: list[Template]
+    env: tuple  # slot values of the parent firing (size = the templates' nslots)
+    mode: str
+    source: Node  # the rule's type (instantiated), for printing and backward use
+    keys: tuple = ()
+
+    def __hash__(self) -> int:
+        return self.uid
+
+
+class Context:
+    """A multiset of facts and rules with indexes for matching."""
+
+    def __init__(self) -> None:
+        self.lin: dict[Node, int] = {}
+        self.aff: dict[Node, int] = {}
+        self.pers: dict[Node, None] = {}
+        self.index: dict = {}  # family | (family, i, arg) -> Bag of facts
+        self.rules: dict[int, CtxRule] = {}
+        self.rule_index: dict = {}  # same keys -> Bag of rule uids
+        self.inert: list[tuple[str, Node]] = []  # hypotheses only backward chaining can use
+
+    # -------------------------------------------------------------- facts
+    def count(self, t: Node, mode: str) -> int:
+        if mode == LIN:
+            return self.lin.get(t, 0)
+        if mode == AFF:
+            return self.aff.get(t, 0)
+        return 1 if t in self.pers else 0
+
+    def present(self, t: Node) -> bool:
+        return t in self.lin or t in self.aff or t in self.pers
+
+    def add_fact(self, t: Root, mode: str) -> bool:
+        """Add a fact; returns True when the atom is new to the context (index updated)."""
+        new = not self.present(t)
+        if mode == LIN:
+            self.lin[t] = self.lin.get(t, 0) + 1
+        elif mode == AFF:
+            self.aff[t] = self.aff.get(t, 0) + 1
+        else:
+            if t in self.pers:
+                return False
+            self.pers[t] = None
+        if new:
+            idx = self.index
+            fam = t.head
+            b = idx.get(fam)
+            if b is None:
+                b = idx[fam] = Bag()
+            b.add(t)
+            for i, a in enumerate(t.args):
+                k = (fam, i, a)
+                b = idx.get(k)
+                if b is None:
+                    b = idx[k] = Bag()
+                b.add(t)
+        return True
+
+    def remove_fact(self, t: Root, mode: str) -> None:
+        if mode == LIN:
+            n = self.lin[t] - 1
+            if n:
+                self.lin[t] = n
+            else:
+                del self.lin[t]
+        elif mode == AFF:
+            n = self.aff[t] - 1
+            if n:
+                self.aff[t] = n
+            else:
+                del self.aff[t]
+        else:
+            return  # persistent facts are never consumed
+        if not self.present(t):
+            idx = self.index
+            fam = t.head
+            idx[fam].discard(t)
+            for i, a in enumerate(t.args):
+                idx[(fam, i, a)].discard(t)
+
+    def candidates(self, key) -> Optional[Bag]:
+        return self.index.get(key)
+
+    # -------------------------------------------------------------- rules
+    def add_rule(self, alts: list[Template], env: tuple, mode: str, source: Node,
+                 uid: Optional[int] = None) -> CtxRule:
+        r = CtxRule(uid or next(_rule_ids), alts, env, mode, source)
+        keys = []
+        for t in alts:
+            for p in t.premises:
+                if p.backward or p.family is None:
+                    keys.append(None)
+                    continue
+                keys.append(_wake_key(p.pattern, env))
+        r.keys = tuple(dict.fromkeys(keys))
+        for k in r.keys:
+            b = self.rule_index.get(k)
+            if b is None:
+                b = self.rule_index[k] = Bag()
+            b.add(r.uid)
+        self.rules[r.uid] = r
+        return r
+
+    def remove_rule(self, r: CtxRule) -> None:
+        del self.rules[r.uid]
+        for k in r.keys:
+            self.rule_index[k].discard(r.uid)
+
+    def rules_woken_by(self, t: Root) -> Iterator[int]:
+        ri = self.rule_index
+        fam = t.head
+        b = ri.get(fam)
+        if b:
+            yield from b.items
+        for i, a in enumerate(t.args):
+            b = ri.get((fam, i, a))
+            if b:
+                yield from b.items
+        b = ri.get(None)
+        if b:
+            yield from b.items
+
+    def rules_linear_left(self) -> bool:
+        """Is a linear rule still waiting (a monad cannot end with one)?"""
+        return any(r.mode == LIN for r in self.rules.values())
+
+    def inert_linear_left(self) -> bool:
+        return any(m == LIN for m, _ in self.inert)
+
+    # -------------------------------------------------------------- views
+    def facts(self) -> Iterator[tuple[str, Node, int]]:
+        for t, n in self.lin.items():
+            yield LIN, t, n
+        for t, n in self.aff.items():
+            yield AFF, t, n
+        for t in self.pers:
+            yield PERS, t, 1
+
+    def size(self) -> int:
+        return sum(self.lin.values()) + sum(self.aff.values()) + len(self.pers) + len(self.rules) + len(self.inert)
+
+    def copy(self) -> "Context":
+        c = Context()
+        for mode, t, n in self.facts():
+            for _ in range(n):
+                c.add_fact(t, mode)
+        for r in self.rules.values():
+            c.add_rule(r.alts, r.env, r.mode, r.source, r.uid)
+        c.inert = list(self.inert)
+        return c
+
+
+def _wake_key(pattern: Node, env: tuple):
+    """The most selective index key under which a premise can be woken."""
+    fam = pattern.head
+    for i, a in enumerate(pattern.args):
+        v = ground_value(a, env)
+        if v is not None:
+            return (fam, i, v)
+    return fam
+
+
+def ground_value(a: Node, b) -> Optional[Node]:
+    """The value of a pattern argument if the bindings already determine it."""
+    if not a.metas:
+        return a if not a.maxb else None
+    if type(a) is Root and not a.args and type(a.head) is Meta:
+        return b[a.head.index]
+    return None

@@ -1,0 +1,431 @@
+"""Forward chaining inside the monad: one matcher, two drivers.
+
+* :func:`find_matches` enumerates the ways a template's premises can be found
+  in a context (premises ordered on the fly, most selective first, through the
+  context's argument index).
+* :class:`Run` is the committed-choice driver: a seeded random or fair
+  round-robin scheduler over an agenda of rules that might be enabled; a rule
+  leaves the agenda when it fails to match and comes back only when a fact it
+  could use is added (consumption never enables a rule), so quiescence is
+  detected without rescanning.
+* :func:`enabled_steps` and :func:`successor` are the explorer's API: every
+  enabled step of a state and the state each one gives.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+from typing import Callable, Iterator, Optional
+
+from .context import Context, CtxRule, ground_value
+from .rules import AFF, LIN, PERS, Template
+from .terms import BVar, Lam, Meta, Node, Param, Root, TypeNode, apply, subst, _map_bvars, bvar
+
+# ------------------------------------------------------------------ matching
+
+
+def match(p: Node, t: Node, b: list, trail: list) -> bool:
+    """One-way matching of pattern ``p`` (slots as :class:`Meta`) against ground ``t``."""
+    if not p.metas:
+        return p is t
+    tp = type(p)
+    if tp is Root:
+        h = p.head
+        if type(h) is Meta:
+            i = h.index
+            if not p.args:
+                v = b[i]
+                if v is None:
+                    if t.maxb:  # would capture a variable bound inside the pattern
+                        return False
+                    b[i] = t
+                    trail.append(i)
+                    return True
+                return v is t
+            v = b[i]
+            if v is not None:
+                return inst(p, b) is t
+            sol = _ho_solve(p.args, t)
+            if sol is None:
+                return False
+            b[i] = sol
+            trail.append(i)
+            return True
+        if type(t) is not Root or t.head is not h:
+            return False
+        pa = p.args
+        ta = t.args
+        if len(pa) != len(ta):
+            return False
+        for x, y in zip(pa, ta):
+            if x is not y and not match(x, y, b, trail):
+                return False
+        return True
+    if tp is Lam:
+        return type(t) is Lam and match(p.body, t.body, b, trail)
+    return False
+
+
+def _ho_solve(args: tuple, t: Node) -> Optional[Node]:
+    """Solve ``X a1..an = t`` where the ai are distinct bound variables (Miller pattern)."""
+    idx = []
+    for a in args:
+        if type(a) is not Root or a.args or type(a.head) is not BVar or a.head.index in idx:
+            return None
+        idx.append(a.head.index)
+    n = len(idx)
+    newpos = {ix: n - 1 - k for k, ix in enumerate(idx)}
+
+    class Escape(Exception):
+        pass
+
+    def fn(i: int, d: int) -> Node:
+        j = i - d
+        if j in newpos:
+            return bvar(newpos[j] + d)
+        raise Escape
+
+    try:
+        body = _map_bvars(t, 0, fn) if t.maxb else t
+    except Escape:
+        return None
+    for _ in range(n):
+        body = Lam(body)
+    return body
+
+
+def inst(p: Node, b) -> Node:
+    """Instantiate a pattern's slots with their values (beta-reducing applied slots)."""
+    if not p.metas:
+        return p
+    tp = type(p)
+    if tp is Root:
+        args = tuple(inst(a, b) for a in p.args) if p.args else ()
+        h = p.head
+        if type(h) is Meta:
+            v = b[h.index]
+            if v is None:
+                raise KeyError(f"slot {h.index} unbound")
+            return apply(v, args) if args else v
+        return Root(h, args)
+    if tp is Lam:
+        return Lam(inst(p.body, b))
+    cls = type(p)
+    return cls(*[inst(v, b) if isinstance(v, Node) else v for v in (getattr(p, f) for f in cls.fields)])
+
+
+# Modes in which a fact may serve a premise, in preference order.
+_SERVE = {LIN: (LIN, AFF, PERS), AFF: (AFF, PERS), PERS: (PERS,)}
+
+Prover = Callable[[Context, Template, object, list, list], Iterator[None]]
+
+
+def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
+                 prover: Optional[Prover] = None, all_modes: bool = False) -> Iterator[list]:
+    """Yield the consumption list ``[(mode, fact), ...]`` of each match; ``b`` holds
+    the bindings while the generator is suspended. ``start`` >= 0 rotates candidate
+    lists (random or fair choice of instances)."""
+    prems = tpl.premises
+    n = len(prems)
+    done = [False] * n
+    used: dict = {}
+    consumed: list = []
+    trail: list = []
+    back = [i for i, p in enumerate(prems) if p.backward]
+    ctx_prems = n - len(back)
+
+    def go(k: int) -> Iterator[list]:
+        if k == ctx_prems:
+            if not back:
+                yield consumed
+                return
+            if prover is None:
+                return
+            yield from _backward(0)
+            return
+        # choose the most selective remaining premise
+        best = None
+        best_bag = None
+        best_n = -1
+        for i, p in enumerate(prems):
+            if done[i] or p.backward:
+                continue
+            pat = p.pattern
+            fam = pat.head
+            bag = None
+            for j, a in enumerate(pat.args):
+                v = ground_value(a, b)
+                if v is not None:
+                    bag2 = ctx.index.get((fam, j, v))
+                    if bag2 is None or not len(bag2):
+                        return
+                    if bag is None or len(bag2) < len(bag):
+                        bag = bag2
+            if bag is None:
+                bag = ctx.index.get(fam)
+                if bag is None or not len(bag):
+                    return
+            if best is None or len(bag) < best_n:
+                best, best_bag, best_n = i, bag, len(bag)
+        p = prems[best]
+        done[best] = True
+        pat = p.pattern
+        it = best_bag.rotated(start) if start >= 0 else list(best_bag.items)
+        for t in it:
+            for mode in _SERVE[p.mode]:
+                have = ctx.count(t, mode)
+                if not have:
+                    continue
+                if mode != PERS:
+                    key = (mode, t)
+                    if used.get(key, 0) >= have:
+                        continue
+                mark = len(trail)
+                if match(pat, t, b, trail):
+                    if mode != PERS:
+                        used[key] = used.get(key, 0) + 1
+                    consumed.append((mode, t))
+                    yield from go(k + 1)
+                    consumed.pop()
+                    if mode != PERS:
+                        used[key] -= 1
+                while len(trail) > mark:
+                    b[trail.pop()] = None
+                if not all_modes:
+                    break
+        done[best] = False
+
+    def _backward(j: int) -> Iterator[list]:
+        if j == len(back):
+            yield consumed
+            return
+        p = prems[back[j]]
+        mark = len(trail)
+        for _ in prover(ctx, tpl, p, b, trail):
+            yield from _backward(j + 1)
+        while len(trail) > mark:
+            b[trail.pop()] = None
+
+    return go(0)
+
+
+# ------------------------------------------------------------------ firing
+
+
+@dataclass
+class Step:
+    """One committed forward step: which rule, with which facts, producing what."""
+
+    rule: str
+    template: Template
+    bindings: tuple
+    consumed: list  # [(mode, fact)]
+    ctx_rule: Optional[int] = None  # uid of the context rule used, if any
+    produced: list = field(default_factory=list)  # [(mode, fact or CtxRule)]
+
+
+def fire(ctx: Context, tpl: Template, b: list, consumed: list, crule: Optional[CtxRule]) -> Step:
+    """Apply a matched template to ``ctx`` (in place)."""
+    step = Step(tpl.name, tpl, tuple(b), list(consumed), crule.uid if crule else None)
+    for mode, t in consumed:
+        ctx.remove_fact(t, mode)
+    if crule is not None and crule.mode != PERS:
+        ctx.remove_rule(crule)
+    produced = step.produced
+    for act in tpl.head:
+        kind = act[0]
+        if kind == "fresh":
+            b[act[1]] = Root(Param(act[2]), ())
+        elif kind == "fact":
+            t = inst(act[2], b)
+            ctx.add_fact(t, act[1])
+            produced.append((act[1], t))
+        elif kind == "rule":
+            _, mode, alts, src, envslots = act
+            vals = [b[s] for s in reversed(envslots)]
+            source = subst(src, vals) if vals else src
+            r = ctx.add_rule(alts, tuple(b), mode, source)
+            produced.append((mode, r))
+        else:
+            ctx.inert.append((act[1], act[2]))
+    step.bindings = tuple(b)
+    return step
+
+
+# ------------------------------------------------------------------ drivers
+
+
+class Run:
+    """Committed-choice forward chaining over a context, to quiescence or a step bound."""
+
+    def __init__(self, templates: list[Template], ctx: Context, seed: Optional[int] = 0,
+                 fair: bool = False, prover: Optional[Prover] = None,
+                 on_step: Optional[Callable[[Step, Context], None]] = None):
+        self.templates = [t for t in templates if t.forward]
+        self.ctx = ctx
+        self.rng = random.Random(seed)
+        self.fair = fair
+        self.prover = prover
+        self.on_step = on_step
+        self.steps = 0
+        self._rr = 0
+        self.by_family: dict = {}
+        self.always: list[Template] = []
+        for t in self.templates:
+            fams = {p.family for p in t.premises if not p.backward}
+            if any(p.backward for p in t.premises) or not t.premises:
+                self.always.append(t)
+            for f in fams:
+                self.by_family.setdefault(f, []).append(t)
+        from .context import Bag
+        self.agenda = Bag()
+        for t in self.templates:
+            self.agenda.add(t)
+        for r in ctx.rules.values():
+            self.agenda.add(r)
+
+    def _pick(self):
+        items = self.agenda.items
+        if self.fair:
+            self._rr += 1
+            return items[self._rr % len(items)]
+        return items[self.rng.randrange(len(items))]
+
+    def _try(self, item) -> Optional[Step]:
+        ctx = self.ctx
+        start = self._rr if self.fair else self.rng.randrange(1 << 30)
+        if type(item) is CtxRule:
+            if item.uid not in ctx.rules:
+                return None
+            alts = item.alts
+            order = range(len(alts))
+            if len(alts) > 1 and not self.fair:
+                order = self.rng.sample(range(len(alts)), len(alts))
+            for a in order:
+                tpl = alts[a]
+                if not tpl.forward:
+                    continue
+                b = list(item.env)
+                for consumed in find_matches(ctx, tpl, b, start, self.prover):
+                    return fire(ctx, tpl, b, consumed, item)
+            return None
+        b = [None] * item.nslots
+        for consumed in find_matches(ctx, item, b, start, self.prover):
+            return fire(ctx, item, b, consumed, None)
+        return None
+
+    def run(self, max_steps: Optional[int] = None) -> bool:
+        """Run; True if quiescent at the end, False if stopped by the bound."""
+        agenda = self.agenda
+        ctx = self.ctx
+        while max_steps is None or self.steps < max_steps:
+            if not len(agenda):
+                return True
+            item = self._pick()
+            step = self._try(item)
+            if step is None:
+                agenda.discard(item)
+                continue
+            self.steps += 1
+            if type(item) is CtxRule and item.mode != PERS:
+                agenda.discard(item)
+            for mode, x in step.produced:
+                if type(x) is CtxRule:
+                    agenda.add(x)
+                    continue
+                for t in self.by_family.get(x.head, ()):
+                    agenda.add(t)
+                for uid in ctx.rules_woken_by(x):
+                    r = ctx.rules.get(uid)
+                    if r is not None:
+                        agenda.add(r)
+            for t in self.always:
+                agenda.add(t)
+            if self.on_step is not None:
+                self.on_step(step, ctx)
+        # bound reached: quiescent only if nothing is enabled any more
+        return not any(True for _ in enabled_steps(self.templates, ctx, self.prover, first_only=True))
+
+
+@dataclass(frozen=True)
+class Choice:
+    """An enabled step of a state (explorer API)."""
+
+    template: Template
+    ctx_rule: Optional[int]
+    bindings: tuple
+    consumed: tuple
+
+    @property
+    def rule(self) -> str:
+        return self.template.name
+
+
+def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prover] = None,
+                  first_only: bool = False) -> Iterator[Choice]:
+    """Every distinct enabled step of ``ctx`` (all rules, all matches, all fact modes)."""
+    seen: set = set()
+    for t in templates:
+        if not t.forward:
+            continue
+        b = [None] * t.nslots
+        for consumed in find_matches(ctx, t, b, -1, prover, all_modes=True):
+            c = Choice(t, None, tuple(b), tuple(consumed))
+            key = (id(t), c.bindings, tuple(sorted(map(id, c.consumed))))
+            if key not in seen:
+                seen.add(key)
+                yield c
+                if first_only:
+                    return
+    for r in list(ctx.rules.values()):
+        for t in r.alts:
+            if not t.forward:
+                continue
+            b = list(r.env)
+            for consumed in find_matches(ctx, t, b, -1, prover, all_modes=True):
+                yield Choice(t, r.uid, tuple(b), tuple(consumed))
+                if first_only:
+                    return
+
+
+def successor(ctx: Context, choice: Choice) -> tuple[Context, Step]:
+    """The state after taking ``choice`` (the given context is left unchanged)."""
+    c = ctx.copy()
+    crule = c.rules[choice.ctx_rule] if choice.ctx_rule is not None else None
+    step = fire(c, choice.template, list(choice.bindings), list(choice.consumed), crule)
+    return c, step
+
+
+def load_positive(ctx: Context, s: Node, compile_fn, name: str = "init") -> list:
+    """Add a closed positive type to the context (``Exists`` makes fresh names)."""
+    from .terms import Aff as _Aff, Bang as _Bang, Exists as _Ex, One as _One, Tensor as _Tensor, Top as _Top
+    added: list = []
+
+    def go(s: Node, mode: str) -> None:
+        ts = type(s)
+        if ts is _Tensor:
+            go(s.left, mode)
+            go(s.right, mode)
+        elif ts is _One:
+            return
+        elif ts is _Ex:
+            p = Root(Param(s.hint), ())
+            go(subst(s.body, [p]), mode)
+        elif ts is _Bang:
+            go(s.body, PERS)
+        elif ts is _Aff:
+            go(s.body, AFF if mode != PERS else PERS)
+        elif ts is Root:
+            ctx.add_fact(s, mode)
+            added.append((mode, s))
+        elif ts is _Top:
+            ctx.inert.append((mode, s))
+        else:
+            alts = compile_fn(name, s)
+            nslots = alts[0].nslots if alts else 0
+            r = ctx.add_rule(alts, tuple([None] * nslots), mode, s)
+            added.append((mode, r))
+
+    go(s, LIN)
+    return added

@@ -1,0 +1,406 @@
+"""Parser for Celf's concrete syntax, producing :mod:`roar_formal.clf.surface` trees.
+
+The grammar lives in ``celf.lark`` next to this module. It is compiled once,
+lazily, into a lark LALR(1) parser with the contextual lexer; the tree is built
+during parsing by an inline transformer (no intermediate lark tree), which
+keeps large files fast. Every lark error is turned into a
+:class:`~roar_formal.errors.SyntaxError_` with a position and a message in
+terms of the source text, never lark's terminal names.
+"""
+
+from __future__ import annotations
+
+import contextvars
+import dataclasses
+import functools
+import re
+from importlib import resources
+from os import PathLike
+from typing import Iterable, Union
+
+from lark import Lark, Token, Transformer
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+
+from ..errors import Pos, RoarError, SyntaxError_
+from . import surface as s
+
+__all__ = ["parse_program", "parse_file", "parse_expr"]
+
+# The inline transformer is fixed when the parser is built, so the file name
+# for positions travels through a context variable set around each parse.
+_FILE: contextvars.ContextVar[str] = contextvars.ContextVar("celf_file", default="<input>")
+
+
+def _tpos(tok: Token) -> Pos:
+    return Pos(_FILE.get(), tok.line, tok.column)
+
+
+def _bound(tok: Token) -> s.Bound:
+    return "*" if tok.type == "STAR" else int(tok)
+
+
+_ARROW_OPS = {"-o": "-o", "->": "->", "-@": "-@", "o-": "-o", "<-": "->", "@-": "-@"}
+
+
+class _Build(Transformer):
+    """Turns each grammar rule into a surface node as soon as it is reduced.
+
+    A node's position is that of its first token: either a token child or the
+    position of its first child node.
+    """
+
+    # -- atoms ------------------------------------------------------------
+    def ident(self, c):
+        return s.Id(_tpos(c[0]), str(c[0]))
+
+    def type_kw(self, c):
+        return s.TypeKw(_tpos(c[0]))
+
+    def one(self, c):
+        return s.One(_tpos(c[0]))
+
+    def underscore(self, c):
+        return s.Underscore(_tpos(c[0]))
+
+    def paren(self, c):
+        # ``(M)`` is M itself, but positioned at the '(' so that the node's
+        # position is still the first token of the text it was read from.
+        return dataclasses.replace(c[1], pos=_tpos(c[0]))
+
+    def annot(self, c):
+        return s.Annot(_tpos(c[0]), c[1], c[2])
+
+    def monad(self, c):
+        return s.Monad(_tpos(c[0]), c[1])
+
+    def pair(self, c):
+        return s.Pair(_tpos(c[0]), c[1], c[2])
+
+    def proj(self, c):
+        body, tok = c
+        return s.Proj(body.pos, body, int(tok[1]))
+
+    # -- application and prefixes ----------------------------------------
+    def apply(self, c):
+        if len(c) == 2:
+            return s.App(c[0].pos, c[0], c[1])
+        fn, mark, arg = c
+        return s.App(fn.pos, fn, arg, str(mark))
+
+    def prefix(self, c):
+        tok, body = c
+        cls = s.Bang if tok.type == "BANG" else s.Affine
+        return cls(_tpos(tok), body)
+
+    # -- binary operators -------------------------------------------------
+    def conj(self, c):
+        left, op, right = c
+        cls = s.Tensor if op.type == "STAR" else s.With
+        return cls(left.pos, left, right)
+
+    def arrow(self, c):
+        left, op, right = c
+        return s.Arrow(left.pos, _ARROW_OPS[str(op)], left, right)
+
+    def rev_arrow(self, c):
+        concl, op, premise = c
+        return s.Arrow(concl.pos, _ARROW_OPS[str(op)], premise, concl, reversed=True)
+
+    # -- binders ----------------------------------------------------------
+    def binder_ty(self, c):
+        return c[0] if c else None
+
+    def lam_mark(self, c):
+        return c[0] if c else None
+
+    def pi(self, c):
+        kw, var, ty, body = c
+        return s.Pi(_tpos(kw), str(var), ty, body)
+
+    def exists(self, c):
+        kw, var, ty, body = c
+        return s.Exists(_tpos(kw), str(var), ty, body)
+
+    def lam(self, c):
+        kw, mark, var, ty, body = c
+        mode = "linear" if mark is None else ("persistent" if mark.type == "BANG" else "affine")
+        return s.Lam(_tpos(kw), str(var), body, mode, ty)
+
+    # -- items ------------------------------------------------------------
+    def decl(self, c):
+        name = c[0]
+        definition = c[2] if len(c) == 3 else None
+        return s.Decl(_tpos(name), str(name), c[1], definition)
+
+    def query(self, c):
+        kw, d, e, l, a, goal = c
+        return s.Query(_tpos(kw), _bound(d), _bound(e), _bound(l), _bound(a), goal)
+
+    def exec(self, c):
+        kw, n, start = c
+        return s.Exec(_tpos(kw), _bound(n), start, trace=kw.type == "TRACE")
+
+    def mode(self, c):
+        kw, name, *modes = c
+        return s.Mode(_tpos(kw), str(name), tuple(str(m) for m in modes))
+
+    def program(self, c):
+        return tuple(c)
+
+    def lone_expr(self, c):
+        return c[0]
+
+
+@functools.cache
+def _parser() -> Lark:
+    """Build the LALR parser once (grammar analysis is the expensive part)."""
+    grammar = resources.files(__package__).joinpath("celf.lark").read_text(encoding="utf-8")
+    return Lark(
+        grammar,
+        parser="lalr",
+        lexer="contextual",
+        start=["program", "lone_expr"],
+        transformer=_Build(),
+        maybe_placeholders=False,
+    )
+
+
+def _run(text: str, file: str, start: str):
+    token = _FILE.set(file)
+    try:
+        return _parser().parse(text, start=start)
+    except UnexpectedInput as e:
+        err = _convert(e, text, file)
+    finally:
+        _FILE.reset(token)
+    raise err from None
+
+
+def parse_program(text: str, file: str = "<input>") -> s.Program:
+    """Parse a whole Celf file (declarations and directives)."""
+    return s.Program(file, _run(text, file, "program"))
+
+
+def parse_expr(text: str, file: str = "<input>") -> s.Expr:
+    """Parse a single expression (no trailing '.')."""
+    return _run(text, file, "lone_expr")
+
+
+def parse_file(path: Union[str, PathLike]) -> s.Program:
+    """Read a UTF-8 file and parse it; unreadable files are user errors, not crashes."""
+    name = str(path)
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            text = f.read()
+    except FileNotFoundError:
+        raise RoarError(f"cannot read {name}: no such file") from None
+    except IsADirectoryError:
+        raise RoarError(f"cannot read {name}: it is a directory") from None
+    except UnicodeDecodeError as e:
+        raise RoarError(f"cannot read {name}: not valid UTF-8 (byte {e.start})") from None
+    except OSError as e:
+        raise RoarError(f"cannot read {name}: {e.strerror or e}") from None
+    return parse_program(text, name)
+
+
+# ---------------------------------------------------------------------------
+# Error messages
+# ---------------------------------------------------------------------------
+
+_LITERAL = {
+    "TYPE": "type", "PI": "Pi", "EXISTS": "Exists", "UNDERSCORE": "_", "ONE": "1",
+    "RLOLLI": "o-", "RARROW": "<-", "RAFFI": "@-", "LOLLI": "-o", "ARROW": "->", "AFFI": "-@",
+    "STAR": "*", "AMP": "&", "PLUS": "+", "MINUS": "-", "BANG": "!", "AT": "@", "LAMBDA": "\\",
+    "LPAR": "(", "_RPAR": ")", "LBRACE": "{", "_RBRACE": "}", "LANGLE": "<", "_RANGLE": ">",
+    "_COMMA": ",", "_COLON": ":", "_EQUAL": "=", "_DOT": ".",
+    "QUERY": "#query", "EXEC": "#exec", "TRACE": "#trace", "MODE": "#mode",
+}
+_EXPR_START = {"ID", "TYPE", "PI", "EXISTS", "UNDERSCORE", "ONE", "BANG", "AT", "LAMBDA",
+               "LPAR", "LBRACE", "LANGLE"}
+_OPERATORS = {"RLOLLI", "RARROW", "RAFFI", "LOLLI", "ARROW", "AFFI", "STAR", "AMP"}
+_ARROWS = _OPERATORS - {"STAR"}  # '*' is also a bound and a mode
+_DIRECTIVES = {"QUERY", "EXEC", "TRACE", "MODE"}
+_CLOSERS = ["_DOT", "_RPAR", "_RBRACE", "_RANGLE", "_COMMA", "_COLON", "_EQUAL"]
+_OPENER_OF = {"_RPAR": "LPAR", "_RBRACE": "LBRACE", "_RANGLE": "LANGLE"}
+_CLOSER_OF = {v: k for k, v in _OPENER_OF.items()}
+_IGNORED = {"WS", "LINE_COMMENT", "BLOCK_COMMENT"}
+_BOUND_HINT = {
+    "QUERY": "#query takes four bounds before its goal: depth, expected solutions, "
+             "solutions per attempt and attempts",
+    "EXEC": "#exec takes a step bound before its start type",
+    "TRACE": "#trace takes a step bound before its start type",
+}
+_OTHER = {"NUMBER": "a natural number", "PROJ": "'#1' or '#2'"}
+_WORD = re.compile(r"[A-Za-z0-9_']*")
+
+
+def _found(tok: Token) -> str:
+    """Describe the offending token as the user wrote it."""
+    if tok.type == "$END":
+        return "end of file"
+    if tok.type == "ID":
+        return f"identifier '{tok}'"
+    if tok.type == "NUMBER":
+        return f"number {tok}"
+    if tok.type in ("TYPE", "PI", "EXISTS"):
+        return f"keyword '{tok}'"
+    if tok.type in _DIRECTIVES:
+        return f"directive '{tok}'"
+    return f"'{tok}'"
+
+
+def _expected(names: Iterable[str]) -> str:
+    """Summarise an expected-terminal set in a few human words."""
+    names = set(names) - _IGNORED
+    parts: list[str] = []
+    if names >= {"ID", "LPAR"}:
+        # After a complete expression the parser also takes arguments and operators.
+        parts += ["an argument", "an operator"] if names & _OPERATORS else ["an expression"]
+        names -= _EXPR_START | _OPERATORS | {"PROJ"}
+    elif names & _DIRECTIVES and "ID" in names:
+        parts += ["a declaration 'name : type.'", "a directive (#query, #exec, #trace, #mode)"]
+        names -= _DIRECTIVES | {"ID"}
+    if {"NUMBER", "STAR"} <= names and not names & _ARROWS:
+        parts.append("a natural number or '*'")
+        names -= {"NUMBER", "STAR"}
+    if {"PLUS", "MINUS", "STAR"} <= names:
+        parts.append("a mode ('+', '-' or '*')")
+        names -= {"PLUS", "MINUS", "STAR"}
+    if "ID" in names:
+        parts.append("an identifier")
+    for n in _CLOSERS:
+        if n in names:
+            parts.append(f"'{_LITERAL[n]}'")
+    for n in sorted(names - {"ID", "$END"} - set(_CLOSERS)):
+        parts.append(f"'{_LITERAL[n]}'" if n in _LITERAL else _OTHER.get(n, n.lower()))
+    if "$END" in names:
+        parts.append("end of file")
+    if not parts:
+        return "nothing more here"
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " or " + parts[-1]
+
+
+def _accepted(e: UnexpectedToken) -> set[str]:
+    """The terminals the parser would accept here.
+
+    LALR states are shared between contexts, so lark's own ``expected`` set can
+    be a union over all of them (e.g. ')' outside any parenthesis); asking the
+    interactive parser which tokens it really accepts gives the precise set.
+    """
+    ip = getattr(e, "interactive_parser", None)
+    if ip is not None:
+        try:
+            return set(ip.accepts()) - _IGNORED
+        except Exception:  # pragma: no cover - fall back on lark's estimate
+            pass
+    return set(e.expected or ()) - _IGNORED
+
+
+def _stack(e: UnexpectedInput) -> list:
+    """The parser's value stack at the error (tokens not yet reduced, and nodes)."""
+    ip = getattr(e, "interactive_parser", None)
+    try:
+        return list(ip.parser_state.value_stack) if ip is not None else []
+    except AttributeError:  # pragma: no cover - lark internals changed
+        return []
+
+
+def _hints(e: UnexpectedToken, expected: set[str], text: str) -> list[str]:
+    """Explanations for the common mistakes, read off the parser's stack."""
+    tok = e.token
+    stack = _stack(e)
+    toks = [v for v in stack if isinstance(v, Token)]
+    last = stack[-1] if stack else None
+    hints: list[str] = []
+
+    # Unclosed or unmatched brackets.
+    open_ = [t for t in toks if t.type in _CLOSER_OF]
+    if tok.type in _OPENER_OF:
+        opener = _OPENER_OF[tok.type]
+        if not any(t.type == opener for t in open_):
+            hints.append(f"there is no open '{_LITERAL[opener]}' for this '{tok}' to close")
+    elif open_ and _CLOSER_OF[open_[-1].type] in expected:
+        o = open_[-1]
+        hints.append(f"the '{o}' at {o.line}:{o.column} is not closed")
+
+    # A bound of #query/#exec/#trace that is not a number.
+    if {"NUMBER", "STAR"} <= expected and not expected & _ARROWS:
+        directive = next((t for t in reversed(toks) if t.type in _DIRECTIVES), None)
+        if directive is not None and directive.type in _BOUND_HINT:
+            hints.append(_BOUND_HINT[directive.type])
+
+    # A binder without its variable or its body.
+    if isinstance(last, Token):
+        before = stack[-2] if len(stack) > 1 else None
+        after_mark = last.type in ("BANG", "AT") and isinstance(before, Token) and before.type == "LAMBDA"
+        if last.type in ("PI", "EXISTS", "LAMBDA") or after_mark:
+            binder = before if after_mark else last
+            hints.append(f"'{binder}' must be followed by the name of the variable it binds")
+        elif last.type == "_DOT" and tok.type in ("$END", "_DOT", "_RPAR", "_RBRACE", "_RANGLE", "_COMMA"):
+            binder = next((t for t in reversed(toks) if t.type in ("PI", "EXISTS", "LAMBDA")), None)
+            if binder is not None:
+                hints.append(f"the '{binder}' at {binder.line}:{binder.column} has no body after its '.'")
+        elif last.type in _OPERATORS and tok.type in _CLOSERS + ["$END"]:
+            hints.append(f"'{last}' needs an expression on its right")
+
+    # A declaration or directive that is missing its final '.'.
+    if "_DOT" in expected and not hints:
+        if tok.type == "$END":
+            hints.append("every declaration and directive ends with '.'")
+        elif tok.type in _DIRECTIVES or (tok.type in ("_COLON", "_EQUAL") and _starts_line(tok, text)):
+            hints.append("is the '.' ending the previous declaration missing?")
+
+    if tok.type == "NUMBER" and "ONE" in expected:
+        hints.append("the only number that is an expression is '1'")
+    return hints
+
+
+def _starts_line(tok: Token, text: str) -> bool:
+    """Is ``tok`` preceded on its line only by an identifier (``name :`` at line start)?"""
+    start = tok.start_pos if tok.start_pos is not None else 0
+    line_start = text.rfind("\n", 0, start) + 1
+    return re.fullmatch(r"\s*[A-Za-z_][A-Za-z0-9_']*\s*", text[line_start:start]) is not None
+
+
+def _convert(e: UnexpectedInput, text: str, file: str) -> SyntaxError_:
+    """Turn any lark parse error into a positioned SyntaxError_ with a readable message."""
+    if isinstance(e, UnexpectedToken):
+        tok = e.token
+        expected = _accepted(e)
+        if tok.type == "$END":
+            line, col = (tok.end_line, tok.end_column) if tok.end_line else (tok.line, tok.column)
+        else:
+            line, col = tok.line, tok.column
+        msg = f"unexpected {_found(tok)}; expected {_expected(expected)}"
+        hints = _hints(e, expected, text)
+        if hints:
+            msg += " (" + "; ".join(hints) + ")"
+        return SyntaxError_(msg, Pos(file, line or 1, col or 1))
+    if isinstance(e, UnexpectedCharacters):
+        return SyntaxError_(_bad_characters(e, text), Pos(file, e.line, e.column))
+    if isinstance(e, UnexpectedEOF):  # not raised by LALR, but be safe
+        return SyntaxError_("unexpected end of file", Pos(file, *_end(text)))
+    return SyntaxError_(f"syntax error: {e}", Pos(file, getattr(e, "line", 1) or 1,
+                                                   getattr(e, "column", 1) or 1))
+
+
+def _bad_characters(e: UnexpectedCharacters, text: str) -> str:
+    """Message for text that no token of the language matches at all."""
+    rest = text[e.pos_in_stream:]
+    if rest.startswith("%{"):
+        return "unterminated block comment: '%{' has no matching '}%'"
+    if rest.startswith("#"):
+        word = "#" + _WORD.match(rest, 1).group(0)
+        allowed = set(e.allowed or ())
+        if allowed & _DIRECTIVES or word[1:2].isalpha() and not allowed & {"PROJ"}:
+            return f"unknown directive '{word}'; the directives are #query, #exec, #trace and #mode"
+        return f"unexpected '{word}'; a projection is written '#1' or '#2'"
+    ch = rest[:1]
+    shown = repr(ch) if not ch.isprintable() or ch in "'\\" else f"'{ch}'"
+    return (f"illegal character {shown}; identifiers are made of letters, digits, '_' and \"'\", "
+            f"and start with a letter or '_'")
+
+
+def _end(text: str) -> tuple[int, int]:
+    lines = text.split("\n")
+    return len(lines), len(lines[-1]) + 1

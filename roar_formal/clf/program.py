@@ -1,0 +1,114 @@
+"""A loaded CLF program: checked signature, forward templates, backward clauses.
+
+This is the library entry point: ``Program.from_file(path)`` parses,
+reconstructs types and compiles; ``program.start_context(S)`` builds a
+context; ``program.run(ctx, ...)`` runs committed choice; ``program.steps(ctx)``
+and ``program.successor(ctx, choice)`` are the explorer's view.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+from .backward import Backward, prove_premise
+from .context import Context
+from .forward import Choice, Run, Step, enabled_steps, load_positive, successor
+from .parser import parse_file, parse_program
+from .rules import Template, compile_rule
+from .signature import Signature, elaborate
+from .terms import Const, Imp, Monad, Node, Pi, Root, With
+
+
+def _ends_in_monad(ty: Node) -> bool:
+    while True:
+        t = type(ty)
+        if t is Pi or t is Imp:
+            ty = ty.body
+        elif t is With:
+            return _ends_in_monad(ty.left) or _ends_in_monad(ty.right)
+        else:
+            return t is Monad
+
+
+def _head_family(ty: Node) -> Optional[Const]:
+    while True:
+        t = type(ty)
+        if t is Pi or t is Imp:
+            ty = ty.body
+        elif t is Root:
+            return ty.head
+        else:
+            return None
+
+
+class Program:
+    """A checked, compiled CLF signature with its directives."""
+
+    def __init__(self, sig: Signature):
+        self.sig = sig
+        self.clauses: dict[Const, list[tuple[str, Node]]] = {}
+        for info in sig.consts.values():
+            if info.is_family or info.definition is not None:
+                continue
+            fam = _head_family(info.classifier)
+            if fam is not None:
+                self.clauses.setdefault(fam, []).append((info.name, info.classifier))
+        self.backward_families = frozenset(self.clauses)
+        self.templates: list[Template] = []
+        self.rule_names: list[str] = []
+        for info in sig.consts.values():
+            if info.is_family or info.definition is not None:
+                continue
+            if _ends_in_monad(info.classifier):
+                self.templates.extend(compile_rule(info.name, info.classifier, info.pos, self.backward_families))
+                self.rule_names.append(info.name)
+        self._ctx_cache: dict = {}
+
+    # ---------------------------------------------------------- loading
+    @classmethod
+    def from_file(cls, path: str | Path) -> "Program":
+        return cls(elaborate(parse_file(str(path))))
+
+    @classmethod
+    def from_text(cls, text: str, file: str = "<input>") -> "Program":
+        return cls(elaborate(parse_program(text, file)))
+
+    # ---------------------------------------------------------- contexts
+    def compile_context_rule(self, name: str, ty: Node) -> list[Template]:
+        """Templates for a rule that lives in a context (cached per type)."""
+        alts = self._ctx_cache.get(ty)
+        if alts is None:
+            alts = compile_rule(name, ty, None, self.backward_families)
+            self._ctx_cache[ty] = alts
+        return alts
+
+    def start_context(self, s: Node) -> Context:
+        """A context holding the closed positive type ``s``."""
+        ctx = Context()
+        load_positive(ctx, s, self.compile_context_rule)
+        return ctx
+
+    def prover(self, bw: Optional[Backward] = None):
+        """The callback forward matching uses for premises solved by proof search."""
+        bw = bw or Backward(self)
+
+        def prove(ctx, tpl, p, b, trail):
+            return prove_premise(bw, ctx, tpl, p, b, trail)
+
+        return prove
+
+    # ---------------------------------------------------------- running
+    def run(self, ctx: Context, max_steps: Optional[int] = None, seed: Optional[int] = 0,
+            fair: bool = False, on_step=None) -> tuple[int, bool]:
+        """Committed choice in place; returns (steps taken, quiescent)."""
+        r = Run(self.templates, ctx, seed=seed, fair=fair, prover=self.prover(), on_step=on_step)
+        q = r.run(max_steps)
+        return r.steps, q
+
+    def steps(self, ctx: Context) -> list[Choice]:
+        """Every enabled step of ``ctx`` (explorer API)."""
+        return list(enabled_steps(self.templates, ctx, self.prover()))
+
+    def successor(self, ctx: Context, choice: Choice) -> tuple[Context, Step]:
+        return successor(ctx, choice)

@@ -1,0 +1,239 @@
+"""Compiling forward-chaining rules into matching templates.
+
+A rule such as ``Pi X. Pi D. eval (num X) D -o {return X D}`` becomes a
+:class:`Template`: numbered slots for its ``Pi`` (and head ``Exists``)
+variables, premise patterns in which the bound variables are slots
+(:class:`Meta`), and head actions (make a fresh name, add a fact, add a rule).
+A rule nested in a head (a destination-passing continuation) is a template
+whose slots continue its parent's, and a live rule in the context is a
+template plus the parent's slot values (a closure): nothing is substituted
+when it is created, only when it fires.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+from ..errors import Pos, UnsupportedError
+from .printer import show
+from .terms import (Aff, Bang, BVar, Const, Exists, Imp, Lam, Meta, Monad, Node, One, Pi, Root, Tensor, Top,
+                    TypeNode, With, apply)
+
+LIN, PERS, AFF = "1", "!", "@"
+
+
+@dataclass(eq=False)
+class Premise:
+    mode: str  # LIN, PERS or AFF: how the fact is used
+    pattern: Node  # an atom with slots, or a goal type when ``backward``
+    family: Optional[Const]
+    backward: bool = False  # solved by proof search rather than found in the context
+
+
+@dataclass(eq=False)
+class Template:
+    """One alternative of a rule: premises and, if ``forward``, a monadic head."""
+
+    name: str
+    nslots: int
+    nouter: int  # slots bound before this template fires (its closure's)
+    premises: list[Premise]
+    head: list = field(default_factory=list)  # actions, see ``_head``
+    forward: bool = True
+    slot_names: list[str] = field(default_factory=list)
+    source: Optional[Node] = None  # the type it was compiled from (slots as Metas)
+
+
+def _conv(t: Node, env: list[int], lam_depth: int = 0) -> Node:
+    """Turn binder references of a type's term into slot references."""
+    if t.maxb <= lam_depth:
+        return t
+    tt = type(t)
+    if tt is Root:
+        args = tuple(_conv(a, env, lam_depth) for a in t.args)
+        h = t.head
+        if type(h) is BVar and h.index >= lam_depth:
+            j = h.index - lam_depth
+            return apply(Root(Meta(env[len(env) - 1 - j]), ()), args) if args else Root(Meta(env[len(env) - 1 - j]), ())
+        return Root(h, args)
+    if tt is Lam:
+        return Lam(_conv(t.body, env, lam_depth + 1))
+    raise AssertionError("types are converted by _conv_type")
+
+
+def _conv_type(t: Node, env: list[int], alloc) -> Node:
+    """Convert a whole type (binders inside stay binders, but outer ones become slots)."""
+    # Types inside heads keep their own binders; we convert those via fresh slots too.
+    tt = type(t)
+    if tt is Root:
+        return _conv(t, env)
+    if isinstance(t, TypeNode):
+        if tt in (Pi, Exists):
+            dom = _conv_type(t.dom, env, alloc)
+            s = alloc(t.hint)
+            body = _conv_type(t.body, env + [s], alloc)
+            return tt(t.hint, dom, body)
+        vals = [(_conv_type(getattr(t, f), env, alloc) if isinstance(getattr(t, f), Node) else getattr(t, f))
+                for f in tt.fields]
+        return tt(*vals)
+    return _conv(t, env)
+
+
+class Compiler:
+    """Compiles types into templates; one instance per rule source."""
+
+    def __init__(self, name: str, pos: Optional[Pos] = None, backward_families: frozenset = frozenset()):
+        self.name = name
+        self.pos = pos
+        self.backward_families = backward_families
+        self.names: list[str] = []
+
+    def alloc(self, hint: str) -> int:
+        self.names.append(hint)
+        return len(self.names) - 1
+
+    def compile(self, ty: Node) -> list[Template]:
+        """All alternatives of a closed negative type (``&`` distributes over premises)."""
+        out: list[Template] = []
+        self._walk(ty, [], [], out, 0)
+        return out
+
+    def _walk(self, ty: Node, env: list[int], prem: list[Premise], out: list, nouter: int) -> None:
+        tt = type(ty)
+        if tt is Pi:
+            s = self.alloc(ty.hint)
+            self._walk(ty.body, env + [s], prem, out, nouter)
+        elif tt is Imp:
+            dom = ty.dom
+            if type(dom) is Root and (dom.head not in self.backward_families or ty.mode != PERS):
+                p = Premise(ty.mode, _conv(dom, env), dom.head)
+            else:
+                p = Premise(ty.mode, _conv_type(dom, env, self.alloc), dom.head if type(dom) is Root else None,
+                            backward=True)
+            self._walk(ty.body, env, prem + [p], out, nouter)
+        elif tt is With:
+            self._walk(ty.left, env, prem, out, nouter)
+            self._walk(ty.right, env, prem, out, nouter)
+        elif tt is Monad:
+            actions: list = []
+            self._head(ty.body, env, actions)
+            out.append(self._finish(prem, actions, True, nouter))
+        else:  # an atom or T: usable by backward chaining only
+            out.append(self._finish(prem, [], False, nouter))
+
+    def _finish(self, prem, actions, forward, nouter) -> Template:
+        return Template(self.name, 0, nouter, prem, actions, forward, self.names)
+
+    def _head(self, s: Node, env: list[int], actions: list) -> None:
+        ts = type(s)
+        if ts is Tensor:
+            self._head(s.left, env, actions)
+            self._head(s.right, env, actions)
+        elif ts is One:
+            return
+        elif ts is Exists:
+            slot = self.alloc(s.hint)
+            actions.append(("fresh", slot, s.hint))
+            self._head(s.body, env + [slot], actions)
+        elif ts is Bang:
+            self._produce(s.body, env, PERS, actions)
+        elif ts is Aff:
+            self._produce(s.body, env, AFF, actions)
+        else:
+            self._produce(s, env, LIN, actions)
+
+    def _produce(self, a: Node, env: list[int], mode: str, actions: list) -> None:
+        if type(a) is Root:
+            actions.append(("fact", mode, _conv(a, env)))
+        elif type(a) is Top:
+            actions.append(("inert", mode, a))
+        else:
+            # a rule in the context: compile now with this environment
+            subs = self.compile_nested(a, env)
+            actions.append(("rule", mode, subs, a, tuple(env)))
+
+    def compile_nested(self, a: Node, env: list[int]) -> list[Template]:
+        out: list[Template] = []
+        nouter_mark = len(self.names)
+        self._walk(a, env, [], out, nouter_mark)
+        return out
+
+
+def finalize(templates: list[Template], nslots: int) -> None:
+    """Every template of one rule source shares the slot layout (size ``nslots``)."""
+    for t in templates:
+        t.nslots = nslots
+        for act in t.head:
+            if act[0] == "rule":
+                finalize(act[2], nslots)
+
+
+def compile_rule(name: str, ty: Node, pos: Optional[Pos] = None,
+                 backward_families: frozenset = frozenset()) -> list[Template]:
+    """Compile a closed rule type from the signature or a start context."""
+    c = Compiler(name, pos, backward_families)
+    temps = c.compile(ty)
+    finalize(temps, len(c.names))
+    for t in temps:
+        if t.forward:
+            _check_determined(t, c.names, pos)
+    return temps
+
+
+def _metas_bound_by(p: Node, acc: set) -> None:
+    """Slots that matching ``p`` binds (rigid occurrences, or heads of pattern spines)."""
+    stack = [p]
+    while stack:
+        x = stack.pop()
+        if not x.metas:
+            continue
+        if type(x) is Root:
+            if type(x.head) is Meta:
+                acc.add(x.head.index)
+            stack.extend(x.args)
+        elif type(x) is Lam:
+            stack.append(x.body)
+        elif isinstance(x, TypeNode):
+            stack.extend(v for v in (getattr(x, f) for f in type(x).fields) if isinstance(v, Node))
+
+
+def _check_determined(t: Template, names: list[str], pos: Optional[Pos]) -> None:
+    bound: set = set(range(t.nouter))
+    for p in t.premises:
+        if not p.backward:
+            _metas_bound_by(p.pattern, bound)
+    used: set = set()
+    for p in t.premises:
+        if p.backward:
+            _metas_bound_by(p.pattern, used)
+    fresh = {a[1] for a in t.head if a[0] == "fresh"}
+    _collect_head(t.head, used)
+    missing = sorted(s for s in used - bound - fresh if s >= 0 and s < len(names)
+                     and not _is_fresh_anywhere(t.head, s))
+    if missing:
+        nm = ", ".join(names[s] for s in missing)
+        raise UnsupportedError(
+            f"in rule '{t.name}': variable(s) {nm} are not determined by the rule's premises; "
+            "forward chaining needs every Pi variable to occur in a premise found in the context", pos)
+
+
+def _is_fresh_anywhere(actions: list, slot: int) -> bool:
+    for a in actions:
+        if a[0] == "fresh" and a[1] == slot:
+            return True
+        if a[0] == "rule":
+            for t in a[2]:
+                if _is_fresh_anywhere(t.head, slot):
+                    return True
+    return False
+
+
+def _collect_head(actions: list, acc: set) -> None:
+    for a in actions:
+        if a[0] == "fact":
+            _metas_bound_by(a[2], acc)
+
+
+def describe(t: Template) -> str:
+    return f"{t.name}: " + ", ".join(show(p.pattern) for p in t.premises)

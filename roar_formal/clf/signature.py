@@ -1,0 +1,531 @@
+"""Signatures and type reconstruction: surface syntax to checked, internal CLF.
+
+LF-style checking with unification: free upper-case variables of a declaration
+and unsolved implicit arguments of the constants it uses become implicit
+``Pi`` binders in front of it (as in Twelf and Celf); every use of a constant
+then receives fresh logic variables for its implicit arguments. Positive
+types on the left of an arrow are curried away (``A * B -o C`` is
+``A -o B -o C``, ``Exists x. A -o C`` is ``Pi x. A -o C``, ``!A -o C`` is
+``A -> C``). Anything the engine does not support is refused with a message
+that names the construct.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+from ..errors import Pos, TypeError_, UnsupportedError
+from . import surface as S
+from .printer import IMPLICIT, show
+from .terms import (Aff, Bang, Const, EVar, Exists, Imp, Lam, Monad, Node, One, Param, Pi, Root, Tensor,
+                    Top, Type, TypeNode, With, abstract, apply, deref, free_evars, param_term, subst, subst1, zonk)
+from .unify import Unifier
+
+
+@dataclass
+class ConstInfo:
+    """A declared constant or type family with its reconstructed classifier."""
+
+    name: str
+    const: Const
+    classifier: Node  # closed kind (families) or type (constants), implicit Pis first
+    implicit: int
+    is_family: bool
+    pos: Pos
+    definition: Optional[Node] = None
+
+
+@dataclass
+class QueryDirective:
+    pos: Pos
+    depth: object
+    expected: object
+    look: object
+    attempts: object
+    goal: Node
+    logic_vars: list  # (name, EVar) in order of first occurrence
+
+
+@dataclass
+class ExecDirective:
+    pos: Pos
+    steps: object
+    start: Node
+    trace: bool
+
+
+@dataclass
+class Signature:
+    """Constants in declaration order, plus the directives in program order."""
+
+    consts: dict[str, ConstInfo] = field(default_factory=dict)
+    directives: list = field(default_factory=list)
+    modes: dict[str, tuple] = field(default_factory=dict)
+    file: str = "<input>"
+
+    def lookup(self, name: str) -> Optional[ConstInfo]:
+        return self.consts.get(name)
+
+
+def _is_kind(e: S.Expr) -> bool:
+    while True:
+        if isinstance(e, S.TypeKw):
+            return True
+        if isinstance(e, S.Pi):
+            e = e.body
+        elif isinstance(e, S.Arrow) and e.op == "->":
+            e = e.right
+        else:
+            return False
+
+
+def _is_upper(name: str) -> bool:
+    return name[:1].isupper()
+
+
+class Elaborator:
+    """Elaborates one program item at a time into a :class:`Signature`."""
+
+    def __init__(self, sig: Signature):
+        self.sig = sig
+
+    # ------------------------------------------------------------ entry points
+    def declare(self, d: S.Decl) -> ConstInfo:
+        if d.name in self.sig.consts:
+            prev = self.sig.consts[d.name]
+            raise TypeError_(f"'{d.name}' is already declared (at {prev.pos})", d.pos)
+        self._begin()
+        is_family = _is_kind(d.classifier)
+        if is_family:
+            cls = self.kind(d.classifier)
+        else:
+            cls = self.neg(d.classifier)
+        definition = None
+        if d.definition is not None:
+            if is_family:
+                if not isinstance(d.classifier, S.TypeKw):
+                    raise UnsupportedError("type abbreviations with arguments are not supported", d.pos)
+                definition = self.neg(d.definition)
+            else:
+                definition = self.check(d.definition, cls)
+        self._solve_postponed(d.pos)
+        cls, n, definition = self._generalise(cls, d.pos, definition)
+        info = ConstInfo(d.name, Const(d.name), cls, n, is_family, d.pos, definition)
+        self.sig.consts[d.name] = info
+        IMPLICIT[info.const] = n
+        return info
+
+    def query(self, q: S.Query) -> QueryDirective:
+        self._begin()
+        goal = self.neg(q.goal)
+        self._solve_postponed(q.pos)
+        goal = zonk(goal)
+        named = [(n, x) for n, x in self.free.items()]
+        return QueryDirective(q.pos, q.depth, q.expected, q.look, q.attempts, goal, named)
+
+    def exec_(self, e: S.Exec) -> ExecDirective:
+        self._begin()
+        start = self.pos(e.start)
+        self._solve_postponed(e.pos)
+        if self.free:
+            name = next(iter(self.free))
+            raise TypeError_(f"unbound variable '{name}' in the start context of #exec", e.pos)
+        start = zonk(start)
+        left = free_evars(start)
+        if left:
+            raise TypeError_("the start context of #exec has parts that cannot be inferred", e.pos)
+        return ExecDirective(e.pos, e.steps, start, e.trace)
+
+    # ------------------------------------------------------------ state
+    def _begin(self) -> None:
+        self.u = Unifier()
+        self.free: dict[str, Root] = {}  # implicit (free upper-case) variables
+        self.bound: list[tuple[str, Param]] = []
+        self.ptype: dict[Param, Node] = {}
+        self.evars: list[EVar] = []  # every logic variable made for this item
+
+    def _evar(self, name: str, ty: Optional[Node], scope_of: Optional[EVar] = None) -> EVar:
+        x = EVar(name, ty)
+        if scope_of is not None:
+            x.scope = scope_of.scope
+        self.evars.append(x)
+        return x
+
+    def _unify(self, a: Node, b: Node, pos: Pos, what: str) -> None:
+        if not self.u.unify(a, b):
+            raise TypeError_(
+                f"type mismatch in {what}",
+                pos,
+                [f"expected: {self._show(a)}", f"found:    {self._show(b)}"],
+            )
+
+    def _show(self, t: Node) -> str:
+        return show(zonk(t), [n for n, _ in self.bound]) if not t.maxp else show(zonk(self._close(t)), [n for n, _ in self.bound])
+
+    def _close(self, t: Node) -> Node:
+        return abstract(zonk(t), [p for _, p in self.bound]) if self.bound else t
+
+    def _solve_postponed(self, pos: Pos) -> None:
+        if not self.u.solved():
+            a, b = self.u.postponed[0]
+            raise TypeError_(
+                "cannot solve a unification constraint outside the higher-order pattern fragment",
+                pos,
+                [f"{self._show(a)}  =  {self._show(b)}"],
+            )
+
+    def _open(self, name: str, ty: Node) -> Param:
+        p = Param(name)
+        self.bound.append((name, p))
+        self.ptype[p] = ty
+        return p
+
+    def _close_binder(self, p: Param, body: Node) -> Node:
+        """Leave the scope of ``p``: unsolved variables inside may no longer mention it."""
+        self.bound.pop()
+        for x in free_evars(body):
+            if x.scope > p.id:
+                x.scope = p.id
+        return abstract(body, [p])
+
+    def _generalise(self, cls: Node, pos: Pos, definition: Optional[Node]):
+        """Abstract unsolved logic variables as implicit Pi binders, dependencies first."""
+        cls = zonk(cls)
+        pending = free_evars(cls)
+        if definition is not None:
+            definition = zonk(definition)
+            extra = [x for x in free_evars(definition) if x not in pending]
+            if extra:
+                raise TypeError_("the definition has parts that cannot be inferred", pos)
+        # close over types of the variables too, and order by dependency
+        order: list[EVar] = []
+        seen: set = set()
+
+        def visit(x: EVar, chain: tuple) -> None:
+            if x in seen:
+                return
+            if x in chain:
+                raise TypeError_("circular dependency between implicit arguments", pos)
+            if x.ty is None:
+                raise TypeError_(f"cannot infer the type of '{self._name_of(x)}'", pos)
+            ty = zonk(x.ty)
+            x.ty = ty
+            for y in free_evars(ty):
+                visit(y, chain + (x,))
+            seen.add(x)
+            order.append(x)
+
+        for x in sorted(pending, key=lambda e: e.uid):
+            visit(x, ())
+        for x in order:
+            if isinstance(x.ty, Root) and type(x.ty.head) is EVar:
+                raise TypeError_(f"cannot infer the type of '{self._name_of(x)}'", pos)
+            if isinstance(x.ty, TypeNode) and type(x.ty) is Type:
+                raise TypeError_(f"'{self._name_of(x)}' would have to be a type; CLF has no type variables "
+                                 "(declare a type of type codes, e.g. 'tp : type.', and index by it)", pos)
+        params = []
+        types = []
+        for x in order:
+            types.append(abstract(zonk(x.ty), params) if params else zonk(x.ty))
+            p = Param(x.name)
+            params.append(p)
+            x.ref = param_term(p)
+        body = abstract(zonk(cls), params) if params else cls
+        if definition is not None and params:
+            definition = abstract(zonk(definition), params)
+        for x, ty in zip(reversed(order), reversed(types)):
+            body = Pi(x.name, ty, body)
+        if body.evars:
+            raise TypeError_("internal: unsolved variables remain after generalisation", pos)
+        return body, len(order), definition
+
+    def _name_of(self, x: EVar) -> str:
+        for n, r in self.free.items():
+            if r.head is x:
+                return n
+        return x.name
+
+    # ------------------------------------------------------------ kinds
+    def kind(self, e: S.Expr) -> Node:
+        if isinstance(e, S.TypeKw):
+            return Type()
+        if isinstance(e, S.Pi):
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            p = self._open(e.var, dom)
+            body = self.kind(e.body)
+            return Pi(e.var, dom, self._close_binder(p, body))
+        if isinstance(e, S.Arrow) and e.op == "->":
+            dom = self.neg(e.left)
+            return Imp("!", dom, self.kind(e.right))
+        raise TypeError_("expected a kind (ending in 'type')", e.pos)
+
+    def _type_evar(self, name: str) -> Root:
+        return Root(self._evar(f"ty_{name}", Type()), ())
+
+    # ------------------------------------------------------------ negative types
+    def neg(self, e: S.Expr) -> Node:
+        """An asynchronous (negative) type."""
+        if isinstance(e, S.Pi):
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            p = self._open(e.var, dom)
+            body = self.neg(e.body)
+            return Pi(e.var, dom, self._close_binder(p, body))
+        if isinstance(e, S.Arrow):
+            mode = {"->": "!", "-o": "1", "-@": "@"}[e.op]
+            return self._left(e.left, mode, lambda: self.neg(e.right))
+        if isinstance(e, S.With):
+            return With(self.neg(e.left), self.neg(e.right))
+        if isinstance(e, S.Monad):
+            return Monad(self.pos(e.body))
+        if isinstance(e, S.Id) and e.name == "T" and not self._is_bound("T") and "T" not in self.sig.consts:
+            return Top()
+        if isinstance(e, (S.Id, S.App)):
+            return self.atom(e)
+        if isinstance(e, (S.Tensor, S.Exists, S.Bang, S.Affine, S.One)):
+            raise TypeError_(
+                f"a positive type ({_describe(e)}) may only appear inside {{ }} or on the left of an arrow", e.pos)
+        if isinstance(e, S.TypeKw):
+            raise TypeError_("'type' is a kind, not a type", e.pos)
+        raise TypeError_(f"expected a type, found {_describe(e)}", e.pos)
+
+    def _left(self, e: S.Expr, mode: str, k):
+        """Curry a positive premise ``e`` in front of the body built by ``k``."""
+        if isinstance(e, S.Tensor):
+            return self._left(e.left, mode, lambda: self._left(e.right, mode, k))
+        if isinstance(e, S.One):
+            return k()
+        if isinstance(e, S.Exists):
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            p = self._open(e.var, dom)
+            body = self._left(e.body, mode, k)
+            return Pi(e.var, dom, self._close_binder(p, body))
+        if isinstance(e, S.Bang):
+            return self._left(e.body, "!", k)
+        if isinstance(e, S.Affine):
+            return self._left(e.body, "@" if mode != "!" else "!", k)
+        dom = self.neg(e)
+        return Imp(mode, dom, k())
+
+    def _is_bound(self, name: str) -> bool:
+        return any(n == name for n, _ in self.bound)
+
+    # ------------------------------------------------------------ positive types
+    def pos(self, e: S.Expr) -> Node:
+        """A synchronous (positive) type."""
+        if isinstance(e, S.Tensor):
+            return Tensor(self.pos(e.left), self.pos(e.right))
+        if isinstance(e, S.One):
+            return One()
+        if isinstance(e, S.Exists):
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            p = self._open(e.var, dom)
+            body = self.pos(e.body)
+            return Exists(e.var, dom, self._close_binder(p, body))
+        if isinstance(e, S.Bang):
+            return Bang(self.neg(e.body))
+        if isinstance(e, S.Affine):
+            return Aff(self.neg(e.body))
+        return self.neg(e)
+
+    # ------------------------------------------------------------ atoms
+    def atom(self, e: S.Expr) -> Node:
+        head, args = _spine(e)
+        if not isinstance(head, S.Id):
+            raise TypeError_(f"expected a type family at the head of an atomic type, found {_describe(head)}", head.pos)
+        info = self.sig.consts.get(head.name)
+        if info is None:
+            if self._is_bound(head.name) or _is_upper(head.name):
+                raise TypeError_(f"'{head.name}' is a variable, not a type family (CLF has no type variables)", head.pos)
+            raise TypeError_(f"unknown type family '{head.name}'", head.pos)
+        if not info.is_family:
+            raise TypeError_(f"'{head.name}' is a constant, not a type family", head.pos)
+        if info.definition is not None:
+            if args:
+                raise TypeError_(f"type abbreviation '{head.name}' takes no arguments", args[0][0].pos)
+            return info.definition
+        term, k = self._instantiate(info)
+        given = 0
+        for arg, mark in args:
+            k = deref(k)
+            if isinstance(k, Pi):
+                a = self.check(arg, k.dom)
+                term = apply(term, (a,))
+                k = subst1(k.body, a)
+            elif isinstance(k, Imp):
+                a = self.check(arg, k.dom)
+                term = apply(term, (a,))
+                k = k.body
+            else:
+                explicit = _arity(info.classifier) - info.implicit
+                raise TypeError_(
+                    f"type family '{head.name}' takes {explicit} argument{'s' if explicit != 1 else ''}, "
+                    f"given {len(args)}", arg.pos)
+            given += 1
+        if not isinstance(deref(k), Type):
+            explicit = _arity(info.classifier) - info.implicit
+            raise TypeError_(
+                f"type family '{head.name}' takes {explicit} argument{'s' if explicit != 1 else ''}, given {given}",
+                e.pos)
+        return term
+
+    def _instantiate(self, info: ConstInfo) -> tuple[Node, Node]:
+        term, ty, _ = self._instantiate_all(info)
+        return term, ty
+
+    def _instantiate_all(self, info: ConstInfo) -> tuple[Node, Node, list]:
+        """The constant applied to fresh logic variables for its implicit arguments,
+        the rest of its type, and those variables."""
+        term: Node = Root(info.const, ())
+        ty = info.classifier
+        xs = []
+        for _ in range(info.implicit):
+            x = Root(self._evar(ty.hint, ty.dom), ())
+            xs.append(x)
+            term = apply(term, (x,))
+            ty = subst1(ty.body, x)
+        return term, ty, xs
+
+    # ------------------------------------------------------------ objects
+    def infer(self, e: S.Expr) -> tuple[Node, Node]:
+        if isinstance(e, S.Id):
+            for n, p in reversed(self.bound):
+                if n == e.name:
+                    return param_term(p), self.ptype[p]
+            info = self.sig.consts.get(e.name)
+            if info is not None:
+                if info.is_family:
+                    raise TypeError_(f"type family '{e.name}' used as a term", e.pos)
+                term, ty, xs = self._instantiate_all(info)
+                if info.definition is not None:
+                    return (subst(info.definition, list(reversed(xs))) if xs else info.definition), ty
+                return term, ty
+            if _is_upper(e.name) or e.name.startswith("_"):
+                r = self.free.get(e.name)
+                if r is None:
+                    x = self._evar(e.name, None)
+                    x.scope = 0  # a free variable is bound outside everything in the declaration
+                    tyv = self._evar(f"ty_{e.name}", Type(), scope_of=x)
+                    x.ty = Root(tyv, ())
+                    r = Root(x, ())
+                    self.free[e.name] = r
+                return r, r.head.ty
+            raise TypeError_(f"unknown constant '{e.name}'", e.pos)
+        if isinstance(e, S.App):
+            f, fty = self.infer(e.fn)
+            fty = deref(fty)
+            if isinstance(fty, Root) and type(fty.head) is EVar:
+                fx = fty.head
+                a_ty = Root(self._evar("dom", Type(), scope_of=fx), ())
+                b_ty = Root(self._evar("cod", Type(), scope_of=fx), ())
+                self._unify(fty, Imp("!", a_ty, b_ty), e.pos, "an application")
+                fty = deref(fty)
+            if isinstance(fty, Pi):
+                a = self.check(e.arg, fty.dom)
+                return apply(f, (a,)), subst1(fty.body, a)
+            if isinstance(fty, Imp):
+                if fty.mode != "!":
+                    raise UnsupportedError(
+                        "linear or affine function objects as index terms are not supported "
+                        f"(applying a term of type {self._show(fty)})", e.pos)
+                a = self.check(e.arg, fty.dom)
+                return apply(f, (a,)), fty.body
+            raise TypeError_(f"{_describe(e.fn)} is applied to an argument but its type is not a function type",
+                             e.pos, [f"type: {self._show(fty)}"])
+        if isinstance(e, S.Annot):
+            ty = self.neg(e.ty)
+            return self.check(e.term, ty), ty
+        if isinstance(e, S.Underscore):
+            tyv = Root(self._evar("ty", Type()), ())
+            return Root(self._evar("_", tyv), ()), tyv
+        if isinstance(e, S.Lam):
+            if e.ty is not None:
+                dom = self.neg(e.ty)
+                p = self._open(e.var, dom)
+                body, bty = self.infer(e.body)
+                bty = zonk(bty)
+                self.bound.pop()
+                return Lam(abstract(body, [p])), Pi(e.var, dom, abstract(bty, [p]))
+            raise TypeError_("cannot infer the type of this lambda here; annotate it as (\\x. M : A -> B)", e.pos)
+        if isinstance(e, (S.Pair, S.Proj)):
+            raise UnsupportedError(f"{_describe(e)} as an index term is not supported", e.pos)
+        raise TypeError_(f"expected a term, found {_describe(e)}", e.pos)
+
+    def check(self, e: S.Expr, ty: Node) -> Node:
+        ty = deref(ty)
+        if isinstance(e, S.Lam) and e.ty is None:
+            if isinstance(ty, Root) and type(ty.head) is EVar:
+                fx = ty.head
+                a_ty = Root(self._evar("dom", Type(), scope_of=fx), ())
+                b_ty = Root(self._evar("cod", Type(), scope_of=fx), ())
+                self._unify(ty, Imp("!", a_ty, b_ty), e.pos, "a lambda")
+                ty = deref(ty)
+            if isinstance(ty, Pi):
+                p = self._open(e.var, ty.dom)
+                body = self.check(e.body, subst1(ty.body, param_term(p)))
+                return Lam(self._close_binder(p, body))
+            if isinstance(ty, Imp):
+                if ty.mode != "!":
+                    raise UnsupportedError("linear or affine lambdas as index terms are not supported", e.pos)
+                p = self._open(e.var, ty.dom)
+                body = self.check(e.body, ty.body)
+                return Lam(self._close_binder(p, body))
+            raise TypeError_("a lambda is given where a term of a non-function type is expected", e.pos,
+                             [f"expected: {self._show(ty)}"])
+        if isinstance(e, S.Underscore):
+            return Root(self._evar("_", ty), ())
+        term, got = self.infer(e)
+        self._unify(ty, got, e.pos, f"the argument {_describe(e)}")
+        return term
+
+
+def _spine(e: S.Expr):
+    args = []
+    while isinstance(e, S.App):
+        args.append((e.arg, e.mark))
+        e = e.fn
+    args.reverse()
+    return e, args
+
+
+def _arity(k: Node) -> int:
+    n = 0
+    while isinstance(k, (Pi, Imp)):
+        n += 1
+        k = k.body
+    return n
+
+
+def _describe(e: S.Expr) -> str:
+    names = {
+        S.Id: lambda e: f"'{e.name}'", S.TypeKw: lambda e: "'type'", S.One: lambda e: "'1'",
+        S.Underscore: lambda e: "'_'", S.App: lambda e: "an application", S.Lam: lambda e: "a lambda",
+        S.Pi: lambda e: "a Pi type", S.Exists: lambda e: "an Exists type", S.Arrow: lambda e: f"an implication '{e.op}'",
+        S.Tensor: lambda e: "a tensor '*'", S.With: lambda e: "a conjunction '&'", S.Bang: lambda e: "'!'",
+        S.Affine: lambda e: "'@'", S.Monad: lambda e: "a monad '{...}'", S.Pair: lambda e: "a pair '<M, N>'",
+        S.Proj: lambda e: "a projection", S.Annot: lambda e: "an annotation",
+    }
+    return names.get(type(e), lambda e: type(e).__name__)(e)
+
+
+def elaborate(program: S.Program) -> Signature:
+    """Check every item of a parsed program, in order; the first error stops."""
+    sig = Signature(file=program.file)
+    el = Elaborator(sig)
+    for item in program.items:
+        if isinstance(item, S.Decl):
+            el.declare(item)
+        elif isinstance(item, S.Query):
+            sig.directives.append(el.query(item))
+        elif isinstance(item, S.Exec):
+            sig.directives.append(el.exec_(item))
+        elif isinstance(item, S.Mode):
+            info = sig.consts.get(item.family)
+            if info is None or not info.is_family:
+                raise TypeError_(f"#mode names '{item.family}', which is not a declared type family", item.pos)
+            explicit = _arity(info.classifier) - info.implicit
+            if len(item.modes) != explicit:
+                raise TypeError_(f"#mode for '{item.family}' gives {len(item.modes)} modes for {explicit} arguments",
+                                 item.pos)
+            sig.modes[item.family] = item.modes
+    return sig

@@ -1,0 +1,630 @@
+"""Hash-consed terms and types of CLF.
+
+Why hash-consing: two structurally equal ground terms are the same Python
+object, so equality and hashing are O(1) (identity), facts in a context can be
+indexed by their arguments cheaply, and a unary numeral of depth 40,000 costs
+nothing to compare. Bound variables are de Bruijn indices; every node records
+``maxb`` (how many enclosing binders it reaches through: 0 means closed) and
+whether it contains logic variables (``evars``) or pattern slots (``metas``),
+so substitution skips closed subterms without walking them.
+
+Terms: ``Root(head, args)`` (head a :class:`Const`, :class:`Param`,
+:class:`BVar`, :class:`EVar` or :class:`Meta`) and ``Lam(body)``.
+Types: ``Root`` with a family head (atoms), ``Pi``, ``Imp`` (``->``, ``-o``,
+``-@``), ``With``, ``Top``, ``Monad``; positive types ``Tensor``, ``One``,
+``Exists``, ``Bang``, ``Aff``; kinds ``Type`` (and ``Pi``/``Imp`` over it).
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Iterable
+
+# ---------------------------------------------------------------- heads
+
+
+class Head:
+    __slots__ = ()
+
+
+class Const(Head):
+    """A signature constant or type family (interned by name)."""
+
+    __slots__ = ("name",)
+    _table: dict[str, "Const"] = {}
+
+    def __new__(cls, name: str) -> "Const":
+        c = cls._table.get(name)
+        if c is None:
+            c = object.__new__(cls)
+            c.name = name
+            cls._table[name] = c
+        return c
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+_param_ids = itertools.count(1)
+
+
+class Param(Head):
+    """A fresh name (``Exists`` in the monad, ``Pi`` in a goal). Unique by identity.
+
+    ``id`` grows monotonically: a logic variable may only be instantiated with
+    terms whose parameters are older than itself (scope check).
+    """
+
+    __slots__ = ("id", "hint")
+
+    def __init__(self, hint: str = "x"):
+        self.id = next(_param_ids)
+        self.hint = hint
+
+    def __repr__(self) -> str:
+        return f"{self.hint}!{self.id}"
+
+
+class CanonParam(Param):
+    """Canonical names used when states are compared up to renaming."""
+
+    __slots__ = ("index",)
+    _table: dict[int, "CanonParam"] = {}
+
+    def __new__(cls, index: int) -> "CanonParam":
+        p = cls._table.get(index)
+        if p is None:
+            p = object.__new__(cls)
+            p.id = -1 - index  # older than everything: in scope of every logic variable
+            p.hint = f"#{index}"
+            p.index = index
+            cls._table[index] = p
+        return p
+
+    def __init__(self, index: int):  # noqa: D401 - state set in __new__
+        pass
+
+    def __repr__(self) -> str:
+        return self.hint
+
+
+class BVar(Head):
+    """De Bruijn index (0 = innermost binder)."""
+
+    __slots__ = ("index",)
+    _table: dict[int, "BVar"] = {}
+
+    def __new__(cls, index: int) -> "BVar":
+        b = cls._table.get(index)
+        if b is None:
+            b = object.__new__(cls)
+            b.index = index
+            cls._table[index] = b
+        return b
+
+    def __repr__(self) -> str:
+        return f"^{self.index}"
+
+
+class Meta(Head):
+    """Pattern slot ``i`` of a compiled rule: bound by matching, read by instantiation."""
+
+    __slots__ = ("index",)
+    _table: dict[int, "Meta"] = {}
+
+    def __new__(cls, index: int) -> "Meta":
+        m = cls._table.get(index)
+        if m is None:
+            m = object.__new__(cls)
+            m.index = index
+            cls._table[index] = m
+        return m
+
+    def __repr__(self) -> str:
+        return f"?{self.index}"
+
+
+_evar_ids = itertools.count(1)
+
+
+class EVar(Head):
+    """A logic (unification) variable with a mutable binding, undone through a trail."""
+
+    __slots__ = ("ref", "name", "scope", "ty", "uid")
+
+    def __init__(self, name: str = "X", ty=None):
+        self.ref = None
+        self.name = name
+        self.scope = next(_param_ids)  # params with a smaller id are in scope
+        self.ty = ty
+        self.uid = next(_evar_ids)
+
+    def __repr__(self) -> str:
+        return f"?{self.name}{self.uid}"
+
+
+# ---------------------------------------------------------------- nodes
+
+
+class Node:
+    __slots__ = ("maxb", "evars", "metas", "maxp", "__weakref__")
+
+
+_roots: dict = {}
+
+
+class Root(Node):
+    """``head arg1 ... argn`` in beta-normal form (the head is never a lambda)."""
+
+    __slots__ = ("head", "args")
+
+    def __new__(cls, head: Head, args: tuple = ()) -> "Root":
+        key = (head, args)
+        r = _roots.get(key)
+        if r is not None:
+            return r
+        r = object.__new__(cls)
+        r.head = head
+        r.args = args
+        maxb = head.index + 1 if type(head) is BVar else 0
+        ev = type(head) is EVar
+        me = type(head) is Meta
+        maxp = head.id if isinstance(head, Param) and head.id > 0 else 0
+        for a in args:
+            if a.maxb > maxb:
+                maxb = a.maxb
+            if a.maxp > maxp:
+                maxp = a.maxp
+            if a.evars:
+                ev = True
+            if a.metas:
+                me = True
+        r.maxb = maxb
+        r.evars = ev
+        r.metas = me
+        r.maxp = maxp
+        if not ev:  # nodes with logic variables are short-lived: do not pin them
+            _roots[key] = r
+        return r
+
+    def __repr__(self) -> str:
+        from .printer import show
+
+        return show(self)
+
+
+_lams: dict = {}
+
+
+class Lam(Node):
+    """``\\x. body``; construction eta-contracts, so every term is eta-short and
+    structurally equal terms are identical (matching stays syntactic)."""
+
+    __slots__ = ("body",)
+
+    def __new__(cls, body: Node) -> "Lam":
+        r = _lams.get(body)
+        if r is not None:
+            return r
+        if type(body) is Root and body.args:
+            last = body.args[-1]
+            h = body.head
+            if (type(last) is Root and not last.args and last.head is _BV0
+                    and h is not _BV0 and not any(_mentions_below(a, 1) for a in body.args[:-1])):
+                return shift(Root(h, body.args[:-1]), -1)
+        r = object.__new__(cls)
+        r.body = body
+        r.maxb = body.maxb - 1 if body.maxb > 0 else 0
+        r.evars = body.evars
+        r.metas = body.metas
+        r.maxp = body.maxp
+        if not r.evars:
+            _lams[body] = r
+        return r
+
+    def __repr__(self) -> str:
+        from .printer import show
+
+        return show(self)
+
+
+_types: dict = {}
+
+
+class TypeNode(Node):
+    """Base of the non-atomic types and kinds; interned by (class, fields)."""
+
+    __slots__ = ()
+    fields: tuple[str, ...] = ()
+
+    def __repr__(self) -> str:
+        from .printer import show
+
+        return show(self)
+
+
+def _mk(cls, *vals, binder_field: str | None = None):
+    key = (cls, vals)
+    n = _types.get(key)
+    if n is not None:
+        return n
+    n = object.__new__(cls)
+    maxb = maxp = 0
+    ev = me = False
+    for f, v in zip(cls.fields, vals):
+        object.__setattr__(n, f, v)
+        if isinstance(v, Node):
+            if v.maxp > maxp:
+                maxp = v.maxp
+            b = v.maxb - 1 if (f == binder_field and v.maxb > 0) else v.maxb
+            if b > maxb:
+                maxb = b
+            ev = ev or v.evars
+            me = me or v.metas
+    n.maxb = maxb
+    n.evars = ev
+    n.metas = me
+    n.maxp = maxp
+    if not ev:
+        _types[key] = n
+    return n
+
+
+class Type(TypeNode):
+    """The kind ``type``."""
+
+    __slots__ = ()
+
+    def __new__(cls):
+        return _mk(cls)
+
+
+class Top(TypeNode):
+    __slots__ = ()
+
+    def __new__(cls):
+        return _mk(cls)
+
+
+class One(TypeNode):
+    __slots__ = ()
+
+    def __new__(cls):
+        return _mk(cls)
+
+
+class Pi(TypeNode):
+    """``Pi x:A. B`` (B under one binder). ``hint`` is the bound name, for printing."""
+
+    __slots__ = ("hint", "dom", "body")
+    fields = ("hint", "dom", "body")
+
+    def __new__(cls, hint: str, dom: Node, body: Node):
+        return _mk(cls, hint, dom, body, binder_field="body")
+
+
+class Imp(TypeNode):
+    """Non-dependent implication; ``mode`` is ``'!'`` (->), ``'1'`` (-o) or ``'@'`` (-@)."""
+
+    __slots__ = ("mode", "dom", "body")
+    fields = ("mode", "dom", "body")
+
+    def __new__(cls, mode: str, dom: Node, body: Node):
+        return _mk(cls, mode, dom, body)
+
+
+class With(TypeNode):
+    __slots__ = ("left", "right")
+    fields = ("left", "right")
+
+    def __new__(cls, left: Node, right: Node):
+        return _mk(cls, left, right)
+
+
+class Monad(TypeNode):
+    __slots__ = ("body",)
+    fields = ("body",)
+
+    def __new__(cls, body: Node):
+        return _mk(cls, body)
+
+
+class Tensor(TypeNode):
+    __slots__ = ("left", "right")
+    fields = ("left", "right")
+
+    def __new__(cls, left: Node, right: Node):
+        return _mk(cls, left, right)
+
+
+class Exists(TypeNode):
+    """``Exists x:A. S`` (S under one binder)."""
+
+    __slots__ = ("hint", "dom", "body")
+    fields = ("hint", "dom", "body")
+
+    def __new__(cls, hint: str, dom: Node, body: Node):
+        return _mk(cls, hint, dom, body, binder_field="body")
+
+
+class Bang(TypeNode):
+    __slots__ = ("body",)
+    fields = ("body",)
+
+    def __new__(cls, body: Node):
+        return _mk(cls, body)
+
+
+class Aff(TypeNode):
+    __slots__ = ("body",)
+    fields = ("body",)
+
+    def __new__(cls, body: Node):
+        return _mk(cls, body)
+
+
+BINDERS = (Pi, Exists)
+_BV0 = BVar(0)
+
+# ---------------------------------------------------------------- helpers
+
+
+def const(name: str, *args: Node) -> Root:
+    return Root(Const(name), tuple(args))
+
+
+def bvar(i: int) -> Root:
+    return Root(BVar(i), ())
+
+
+def param_term(p: Param) -> Root:
+    return Root(p, ())
+
+
+def deref(t: Node) -> Node:
+    """Follow instantiated logic variables at the head (one level, repeatedly)."""
+    while type(t) is Root and type(t.head) is EVar and t.head.ref is not None:
+        t = apply(t.head.ref, t.args)
+    return t
+
+
+def apply(f: Node, args: tuple) -> Node:
+    """Beta-normal application ``f args`` (hereditary substitution)."""
+    if not args:
+        return f
+    if type(f) is Root:
+        return Root(f.head, f.args + tuple(args))
+    if type(f) is Lam:
+        # substitute all leading lambdas at once
+        n = 0
+        body = f
+        while n < len(args) and type(body) is Lam:
+            body = body.body
+            n += 1
+        res = subst(body, list(reversed(args[:n])))
+        return apply(res, tuple(args[n:]))
+    raise TypeError(f"cannot apply {f!r}")
+
+
+def shift(t: Node, by: int, cutoff: int = 0) -> Node:
+    """Raise loose de Bruijn indices >= cutoff by ``by``."""
+    if by == 0 or t.maxb <= cutoff:
+        return t
+    return _map_bvars(t, cutoff, lambda i, depth: bvar(i + by))
+
+
+def subst(t: Node, vals: list, depth: int = 0) -> Node:
+    """Replace indices depth..depth+len(vals)-1 by ``vals`` (vals[0] for index ``depth``)
+    and lower the indices above; values are closed or shifted as needed."""
+    n = len(vals)
+    if t.maxb <= depth or n == 0:
+        return t
+    memo: dict = {}
+
+    def go(t: Node, d: int) -> Node:
+        if t.maxb <= d:
+            return t
+        key = (t, d)
+        r = memo.get(key)
+        if r is not None:
+            return r
+        tt = type(t)
+        if tt is Root:
+            args = tuple(go(a, d) for a in t.args)
+            h = t.head
+            if type(h) is BVar and h.index >= d:
+                i = h.index - d
+                if i < n:
+                    v = vals[i]
+                    if d and v.maxb:
+                        v = shift(v, d)
+                    r = apply(v, args)
+                else:
+                    r = Root(BVar(h.index - n), args)
+            else:
+                r = Root(h, args)
+        elif tt is Lam:
+            r = Lam(go(t.body, d + 1))
+        else:
+            r = _map_type(t, d, go)
+        memo[key] = r
+        return r
+
+    return go(t, depth)
+
+
+def subst1(body: Node, val: Node) -> Node:
+    """Instantiate the binder of ``body`` with ``val``."""
+    return subst(body, [val])
+
+
+def _map_type(t: TypeNode, d: int, go) -> Node:
+    cls = type(t)
+    vals = []
+    for f in cls.fields:
+        v = getattr(t, f)
+        if isinstance(v, Node):
+            v = go(v, d + 1 if (f == "body" and cls in BINDERS) else d)
+        vals.append(v)
+    return cls(*vals)
+
+
+def _map_bvars(t: Node, cutoff: int, fn) -> Node:
+    memo: dict = {}
+
+    def go(t: Node, d: int) -> Node:
+        if t.maxb <= d:
+            return t
+        key = (t, d)
+        r = memo.get(key)
+        if r is not None:
+            return r
+        tt = type(t)
+        if tt is Root:
+            args = tuple(go(a, d) for a in t.args)
+            h = t.head
+            if type(h) is BVar and h.index >= d:
+                r = apply(fn(h.index, d), args)
+            else:
+                r = Root(h, args)
+        elif tt is Lam:
+            r = Lam(go(t.body, d + 1))
+        else:
+            r = _map_type(t, d, go)
+        memo[key] = r
+        return r
+
+    return go(t, cutoff)
+
+
+def abstract(t: Node, params: list, depth: int = 0) -> Node:
+    """Replace the parameters (head objects) by de Bruijn indices: the last one
+    in ``params`` becomes index ``depth`` (innermost)."""
+    pos = {p: len(params) - 1 - i for i, p in enumerate(params)}
+    n = len(params)
+    memo: dict = {}
+
+    def go(t: Node, d: int) -> Node:
+        key = (t, d)
+        r = memo.get(key)
+        if r is not None:
+            return r
+        tt = type(t)
+        if tt is Root:
+            h = t.head
+            if type(h) is EVar and h.ref is not None:
+                r = go(deref(t), d)
+            else:
+                args = tuple(go(a, d) for a in t.args)
+                if h in pos:
+                    h = BVar(pos[h] + d)
+                elif type(h) is BVar and h.index >= d:
+                    h = BVar(h.index + n)
+                r = Root(h, args)
+        elif tt is Lam:
+            r = Lam(go(t.body, d + 1))
+        else:
+            r = _map_type(t, d, go)
+        memo[key] = r
+        return r
+
+    return go(t, depth)
+
+
+def zonk(t: Node) -> Node:
+    """Replace instantiated logic variables by their values, everywhere."""
+    if not t.evars:
+        return t
+    memo: dict = {}
+
+    def go(t: Node) -> Node:
+        if not t.evars:
+            return t
+        r = memo.get(t)
+        if r is not None:
+            return r
+        tt = type(t)
+        if tt is Root:
+            h = t.head
+            if type(h) is EVar and h.ref is not None:
+                r = go(apply(h.ref, t.args))
+            else:
+                r = Root(h, tuple(go(a) for a in t.args))
+        elif tt is Lam:
+            r = Lam(go(t.body))
+        else:
+            r = type(t)(*[go(v) if isinstance(v, Node) else v for v in (getattr(t, f) for f in type(t).fields)])
+        memo[t] = r
+        return r
+
+    return go(t)
+
+
+def free_evars(t: Node) -> list[EVar]:
+    """Unsolved logic variables of ``t`` in order of first occurrence."""
+    out: dict[EVar, None] = {}
+    stack = [t]
+    seen: set = set()
+    while stack:
+        x = stack.pop()
+        if not x.evars or x in seen:
+            continue
+        seen.add(x)
+        tx = type(x)
+        if tx is Root:
+            h = x.head
+            if type(h) is EVar:
+                if h.ref is not None:
+                    stack.append(apply(h.ref, x.args))
+                    continue
+                out[h] = None
+                if h.ty is not None:
+                    stack.append(h.ty)
+            stack.extend(reversed(x.args))
+        elif tx is Lam:
+            stack.append(x.body)
+        else:
+            stack.extend(v for v in reversed([getattr(x, f) for f in tx.fields]) if isinstance(v, Node))
+    return list(out)
+
+
+def params_of(t: Node) -> Iterable[Param]:
+    """Every parameter occurring in ``t`` (iteratively: numerals may be deep)."""
+    stack = [t]
+    seen: set = set()
+    while stack:
+        x = stack.pop()
+        if x in seen:
+            continue
+        seen.add(x)
+        tx = type(x)
+        if tx is Root:
+            if isinstance(x.head, Param):
+                yield x.head
+            stack.extend(x.args)
+        elif tx is Lam:
+            stack.append(x.body)
+        else:
+            stack.extend(v for v in (getattr(x, f) for f in tx.fields) if isinstance(v, Node))
+
+
+def _mentions_below(t: Node, k: int) -> bool:
+    """Does ``t`` mention a loose index < k?"""
+    stack = [(t, 0)]
+    while stack:
+        x, d = stack.pop()
+        if x.maxb <= d:
+            continue
+        tx = type(x)
+        if tx is Root:
+            if type(x.head) is BVar and d <= x.head.index < d + k:
+                return True
+            stack.extend((a, d) for a in x.args)
+        elif tx is Lam:
+            stack.append((x.body, d + 1))
+        else:
+            for f in tx.fields:
+                v = getattr(x, f)
+                if isinstance(v, Node):
+                    stack.append((v, d + 1 if (f == "body" and tx in BINDERS) else d))
+    return False
