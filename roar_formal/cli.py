@@ -25,6 +25,11 @@ app = typer.Typer(
 err_console = Console(stderr=True, highlight=False)
 
 
+@app.callback()
+def _root() -> None:
+    """Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration."""
+
+
 def _register_all() -> None:
     from .clf import commands as clf_commands
 

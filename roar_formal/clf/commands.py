@@ -1,0 +1,49 @@
+"""``roar-verify clf FILE``: run a Celf program's directives."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+
+from ..errors import QueryError, RoarError
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("clf")
+    def clf(
+        file: Path = typer.Argument(..., help="A Celf program (.clf)."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the committed-choice scheduler."),
+        trace: bool = typer.Option(False, "--trace", help="Print the context after every forward step."),
+        fair: bool = typer.Option(False, "--fair", help="Fair round-robin scheduling instead of random."),
+        proof: bool = typer.Option(False, "--proof", help="Print proof terms (not yet built: refused)."),
+    ) -> None:
+        """Type-check FILE and run its #query, #exec and #trace directives."""
+        from .program import Program
+        from .query import run_directives, with_big_stack
+
+        if proof:
+            raise RoarError("--proof: proof terms are not built by this version of the engine")
+        console = Console(highlight=False)
+
+        def emit(line: str) -> None:
+            style = None
+            if line.endswith(" ok."):
+                style = "green"
+            elif line.endswith(" error.") or line == "No solution.":
+                style = "red"
+            elif line.startswith((" #", "Solution")):
+                style = "cyan"
+            console.print(line, style=style, markup=False, soft_wrap=True)
+
+        def job():
+            program = Program.from_file(file)
+            return run_directives(program, seed=seed, emit=emit, trace=trace, fair=fair)
+
+        try:
+            with_big_stack(job)
+        except QueryError:
+            raise
+        except RecursionError:
+            raise RoarError(f"{file}: the program recursed too deeply for this engine") from None
