@@ -475,7 +475,11 @@ class Elaborator:
         if isinstance(e, S.Underscore):
             return Root(self._evar("_", ty), ())
         term, got = self.infer(e)
-        self._unify(ty, got, e.pos, f"the argument {_describe(e)}")
+        if not self.u.unify(ty, got):
+            # name the argument by its text: "_describe" would only say "an application"
+            what = _describe(e) if isinstance(e, S.Id) else f"'{self._show(term)}'"
+            raise TypeError_(f"type mismatch in the argument {what}", e.pos,
+                             [f"expected: {self._show(ty)}", f"found:    {self._show(got)}"])
         return term
 
 
