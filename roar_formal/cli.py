@@ -11,6 +11,7 @@ import sys
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from .errors import RoarError
 
@@ -45,7 +46,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         app(args=argv, standalone_mode=True)
     except RoarError as exc:
-        err_console.print(f"[bold red]error:[/] {exc.format()}", markup=True, soft_wrap=True)
+        err_console.print(f"[bold red]error:[/] {escape(exc.format())}", markup=True, soft_wrap=True)
         sys.exit(2)
 
 

@@ -170,7 +170,7 @@ class Backward:
                 continue
             if h.mode != PERS and i < floor and not (h.mode == AFF and aff_ok):
                 continue
-            if _head_family(h.ty) is not fam:
+            if fam not in head_families(h.ty):
                 continue
             mark, hmark = self.u.mark(), len(self.htrail)
             if h.mode != PERS:
@@ -192,6 +192,28 @@ class Backward:
             elif tt is Imp:
                 prems.append((ty.mode, ty.dom))
                 ty = ty.body
+            elif tt is With:  # use either half: the clause is (Pi xs. prems -o L) & (... R)
+                for half in (ty.left, ty.right):
+                    yield from self._clause_rest(half, prems, goal, floor, aff_ok)
+                return
+            else:
+                break
+        yield from self._clause_rest(ty, prems, goal, floor, aff_ok)
+
+    def _clause_rest(self, ty: Node, prems: list, goal: Root, floor: int, aff_ok: bool) -> Iterator[None]:
+        prems = list(prems)
+        while True:
+            tt = type(ty)
+            if tt is Pi:
+                x = EVar(ty.hint, ty.dom)
+                ty = subst1(ty.body, Root(x, ()))
+            elif tt is Imp:
+                prems.append((ty.mode, ty.dom))
+                ty = ty.body
+            elif tt is With:
+                for half in (ty.left, ty.right):
+                    yield from self._clause_rest(half, prems, goal, floor, aff_ok)
+                return
             else:
                 break
         if type(ty) is not Root:
@@ -221,6 +243,7 @@ class Backward:
     def _monad(self, s: Node, floor: int) -> Iterator[None]:
         mark, hmark = self.u.mark(), len(self.htrail)
         ctx = Context()
+        ctx.implicit = getattr(self.program, "implicit", None)
         for i, h in enumerate(self.hyps):
             if h.used:
                 continue
@@ -266,50 +289,60 @@ class Backward:
                 items.append((m, t))
 
         flatten(s, LIN)
-        lin = dict(ctx.lin)
-        aff = dict(ctx.aff)
+        # Each hypothesis occurrence is a separate candidate (as in Celf): two identical
+        # linear facts matched by two goal atoms give two solutions.
+        occ: list[list] = []  # [mode, fact, used]
+        for t, n in ctx.lin.items():
+            occ.extend([LIN, t, False] for _ in range(n))
+        for t, n in ctx.aff.items():
+            occ.extend([AFF, t, False] for _ in range(n))
+        pers = list(ctx.pers)
+        serve = {LIN: (LIN, AFF), AFF: (AFF,), PERS: ()}
 
         def go(k: int) -> Iterator[None]:
             if k == len(items):
-                if not any(lin.values()) and not ctx.rules_linear_left() and not ctx.inert_linear_left():
+                if (not any(o[0] == LIN and not o[2] for o in occ) and not ctx.rules_linear_left()
+                        and not ctx.inert_linear_left()):
                     yield
                 return
             m, a = items[k]
             a = deref(a)
             if type(a) is not Root:
                 return  # matching rules in the final context is not supported
-            pools = {LIN: (lin, aff), AFF: (aff,), PERS: ()}[m]
-            for pool in pools:
-                for t, n in list(pool.items()):
-                    if n <= 0 or t.head is not a.head:
-                        continue
-                    mark = self.u.mark()
-                    if self.u.unify(a, t):
-                        pool[t] -= 1
-                        yield from go(k + 1)
-                        pool[t] += 1
-                    self.u.undo(mark)
-            if m == PERS:
-                for t in ctx.pers:
-                    if t.head is not a.head:
-                        continue
-                    mark = self.u.mark()
-                    if self.u.unify(a, t):
-                        yield from go(k + 1)
-                    self.u.undo(mark)
+            for o in occ:
+                if o[2] or o[0] not in serve[m] or o[1].head is not a.head:
+                    continue
+                mark = self.u.mark()
+                if self.u.unify(a, o[1]):
+                    o[2] = True
+                    yield from go(k + 1)
+                    o[2] = False
+                self.u.undo(mark)
+            for t in pers:
+                if t.head is not a.head:
+                    continue
+                mark = self.u.mark()
+                if self.u.unify(a, t):
+                    yield from go(k + 1)
+                self.u.undo(mark)
 
         yield from go(0)
 
 
-def _head_family(ty: Node):
-    while True:
-        tt = type(ty)
+def head_families(ty: Node) -> set:
+    """Families a hypothesis can conclude (both halves of an ``&``)."""
+    out: set = set()
+    stack = [ty]
+    while stack:
+        t = stack.pop()
+        tt = type(t)
         if tt is Pi or tt is Imp:
-            ty = ty.body
+            stack.append(t.body)
+        elif tt is With:
+            stack.extend((t.left, t.right))
         elif tt is Root:
-            return ty.head
-        else:
-            return None
+            out.add(t.head)
+    return out
 
 
 def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> Iterator[None]:

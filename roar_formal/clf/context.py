@@ -53,13 +53,26 @@ class Bag:
         return iter(self.items)
 
     def rotated(self, start: int) -> Iterator:
-        """Iterate from position ``start`` cyclically (random scheduling without a scan)."""
+        """Iterate from position ``start`` cyclically (random scheduling without a scan).
+
+        Lazy: the first element costs O(1) however large the bag (the committed-choice
+        driver usually takes the first candidate). The positions are fixed when the
+        iteration starts, as with a snapshot; the bag must not change while the
+        iterator is in use (the matcher is never resumed after its caller fires).
+        """
         items = self.items
         n = len(items)
         if n == 0:
             return iter(())
         start %= n
-        return itertools.chain(items[start:], items[:start])
+        return _rotation(items, start, n)
+
+
+def _rotation(items: list, start: int, n: int) -> Iterator:
+    for i in range(start, n):
+        yield items[i]
+    for i in range(start):
+        yield items[i]
 
 
 @dataclass(eq=False)
@@ -88,6 +101,7 @@ class Context:
         self.rules: dict[int, CtxRule] = {}
         self.rule_index: dict = {}  # same keys -> Bag of rule uids
         self.inert: list[tuple[str, Node]] = []  # hypotheses only backward chaining can use
+        self.implicit: Optional[dict] = None  # the program's implicit-argument counts, for printing
 
     # -------------------------------------------------------------- facts
     def count(self, t: Node, mode: str) -> int:
@@ -102,15 +116,16 @@ class Context:
 
     def add_fact(self, t: Root, mode: str) -> bool:
         """Add a fact; returns True when the atom is new to the context (index updated)."""
-        new = not self.present(t)
+        lin, aff, pers = self.lin, self.aff, self.pers
+        new = not (t in lin or t in aff or t in pers)  # self.present(t), inlined
         if mode == LIN:
-            self.lin[t] = self.lin.get(t, 0) + 1
+            lin[t] = lin.get(t, 0) + 1
         elif mode == AFF:
-            self.aff[t] = self.aff.get(t, 0) + 1
+            aff[t] = aff.get(t, 0) + 1
         else:
-            if t in self.pers:
+            if t in pers:
                 return False
-            self.pers[t] = None
+            pers[t] = None
         if new:
             idx = self.index
             fam = t.head
@@ -118,8 +133,10 @@ class Context:
             if b is None:
                 b = idx[fam] = Bag()
             b.add(t)
-            for i, a in enumerate(t.args):
+            i = 0
+            for a in t.args:
                 k = (fam, i, a)
+                i += 1
                 b = idx.get(k)
                 if b is None:
                     b = idx[k] = Bag()
@@ -127,26 +144,29 @@ class Context:
         return True
 
     def remove_fact(self, t: Root, mode: str) -> None:
+        lin, aff = self.lin, self.aff
         if mode == LIN:
-            n = self.lin[t] - 1
+            n = lin[t] - 1
             if n:
-                self.lin[t] = n
-            else:
-                del self.lin[t]
+                lin[t] = n
+                return  # still present: the index is unchanged
+            del lin[t]
         elif mode == AFF:
-            n = self.aff[t] - 1
+            n = aff[t] - 1
             if n:
-                self.aff[t] = n
-            else:
-                del self.aff[t]
+                aff[t] = n
+                return
+            del aff[t]
         else:
             return  # persistent facts are never consumed
-        if not self.present(t):
+        if not (t in lin or t in aff or t in self.pers):  # self.present(t), inlined
             idx = self.index
             fam = t.head
             idx[fam].discard(t)
-            for i, a in enumerate(t.args):
+            i = 0
+            for a in t.args:
                 idx[(fam, i, a)].discard(t)
+                i += 1
 
     def candidates(self, key) -> Optional[Bag]:
         return self.index.get(key)
@@ -217,6 +237,7 @@ class Context:
         for r in self.rules.values():
             c.add_rule(r.alts, r.env, r.mode, r.source, r.uid)
         c.inert = list(self.inert)
+        c.implicit = self.implicit
         return c
 
 

@@ -59,7 +59,23 @@ def match(p: Node, t: Node, b: list, trail: list) -> bool:
         if len(pa) != len(ta):
             return False
         for x, y in zip(pa, ta):
-            if x is not y and not match(x, y, b, trail):
+            if x is y:
+                continue
+            if not x.metas:
+                return False  # both ground and hash-consed: equal only if identical
+            if type(x) is Root and not x.args and type(x.head) is Meta:
+                # a bare slot (the common case), inlined
+                i = x.head.index
+                v = b[i]
+                if v is None:
+                    if y.maxb:
+                        return False
+                    b[i] = y
+                    trail.append(i)
+                elif v is not y:
+                    return False
+                continue
+            if not match(x, y, b, trail):
                 return False
         return True
     if tp is Lam:
@@ -101,7 +117,7 @@ def inst(p: Node, b) -> Node:
         return p
     tp = type(p)
     if tp is Root:
-        args = tuple(inst(a, b) for a in p.args) if p.args else ()
+        args = tuple([inst(a, b) if a.metas else a for a in p.args]) if p.args else ()
         h = p.head
         if type(h) is Meta:
             v = b[h.index]
@@ -134,6 +150,8 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
     trail: list = []
     back = [i for i, p in enumerate(prems) if p.backward]
     ctx_prems = n - len(back)
+    index = ctx.index
+    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
 
     def go(k: int) -> Iterator[list]:
         if k == ctx_prems:
@@ -154,27 +172,51 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
             pat = p.pattern
             fam = pat.head
             bag = None
-            for j, a in enumerate(pat.args):
-                v = ground_value(a, b)
-                if v is not None:
-                    bag2 = ctx.index.get((fam, j, v))
-                    if bag2 is None or not len(bag2):
-                        return
-                    if bag is None or len(bag2) < len(bag):
-                        bag = bag2
-            if bag is None:
-                bag = ctx.index.get(fam)
-                if bag is None or not len(bag):
+            bag_n = 0
+            j = -1
+            for a in pat.args:
+                j += 1
+                # ground_value(a, b), inlined
+                if not a.metas:
+                    if a.maxb:
+                        continue
+                    v = a
+                elif type(a) is Root and not a.args and type(a.head) is Meta:
+                    v = b[a.head.index]
+                    if v is None:
+                        continue
+                else:
+                    continue
+                bag2 = index.get((fam, j, v))
+                if bag2 is None:
                     return
-            if best is None or len(bag) < best_n:
-                best, best_bag, best_n = i, bag, len(bag)
+                n2 = len(bag2.items)
+                if not n2:
+                    return
+                if bag is None or n2 < bag_n:
+                    bag, bag_n = bag2, n2
+            if bag is None:
+                bag = index.get(fam)
+                if bag is None:
+                    return
+                bag_n = len(bag.items)
+                if not bag_n:
+                    return
+            if best is None or bag_n < best_n:
+                best, best_bag, best_n = i, bag, bag_n
         p = prems[best]
         done[best] = True
         pat = p.pattern
         it = best_bag.rotated(start) if start >= 0 else list(best_bag.items)
         for t in it:
             for mode in _SERVE[p.mode]:
-                have = ctx.count(t, mode)
+                # ctx.count(t, mode), inlined
+                if mode == LIN:
+                    have = lin.get(t, 0)
+                elif mode == AFF:
+                    have = aff.get(t, 0)
+                else:
+                    have = 1 if t in pers else 0
                 if not have:
                     continue
                 if mode != PERS:
@@ -320,7 +362,7 @@ class Run:
         agenda = self.agenda
         ctx = self.ctx
         while max_steps is None or self.steps < max_steps:
-            if not len(agenda):
+            if not agenda.items:  # len(agenda), without the method call
                 return True
             item = self._pick()
             step = self._try(item)
@@ -336,10 +378,11 @@ class Run:
                     continue
                 for t in self.by_family.get(x.head, ()):
                     agenda.add(t)
-                for uid in ctx.rules_woken_by(x):
-                    r = ctx.rules.get(uid)
-                    if r is not None:
-                        agenda.add(r)
+                if ctx.rules:  # no live rule: nothing to wake
+                    for uid in ctx.rules_woken_by(x):
+                        r = ctx.rules.get(uid)
+                        if r is not None:
+                            agenda.add(r)
             for t in self.always:
                 agenda.add(t)
             if self.on_step is not None:

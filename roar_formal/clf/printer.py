@@ -19,10 +19,16 @@ _IMP = {"!": "->", "1": "-o", "@": "-@"}
 _P_BINDER, _P_ARROW, _P_TENSOR, _P_PREFIX, _P_APP, _P_ATOM = 0, 1, 2, 3, 4, 5
 
 
-def show(t: Node, names: list[str] | None = None, show_implicit: bool = False) -> str:
-    """Render a term or type; ``names`` are the bound names, innermost last."""
+def show(t: Node, names: list[str] | None = None, show_implicit: bool = False,
+         implicit: dict | None = None) -> str:
+    """Render a term or type; ``names`` are the bound names, innermost last.
+
+    ``implicit`` is the program's table of implicit-argument counts (a
+    program's own table keeps its printing independent of programs loaded
+    later); without it the table of the most recent declarations is used.
+    """
     out: list[str] = []
-    _render(t, list(names or []), _P_BINDER, out, show_implicit)
+    _render(t, list(names or []), _P_BINDER, out, show_implicit, IMPLICIT if implicit is None else implicit)
     return "".join(out)
 
 
@@ -53,7 +59,7 @@ def _fresh(names: list[str], hint: str = "x") -> str:
     return f"{base}{k}"
 
 
-def _render(t: Node, names: list[str], prec: int, out: list[str], imp: bool) -> None:
+def _render(t: Node, names: list[str], prec: int, out: list[str], imp: bool, table: dict) -> None:
     # work stack of either strings or (node, names, prec) items
     stack: list = [(t, names, prec)]
     while stack:
@@ -70,7 +76,7 @@ def _render(t: Node, names: list[str], prec: int, out: list[str], imp: bool) -> 
                 continue
             args = t.args
             if not imp and type(h) is Const:
-                args = args[IMPLICIT.get(h, 0):]
+                args = args[table.get(h, 0):]
             hn = _head_name(h, names)
             if not args:
                 out.append(hn)

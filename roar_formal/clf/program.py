@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-from .backward import Backward, prove_premise
+from .backward import Backward, head_families, prove_premise
 from .context import Context
 from .forward import Choice, Run, Step, enabled_steps, load_positive, successor
 from .parser import parse_file, parse_program
@@ -31,17 +31,6 @@ def _ends_in_monad(ty: Node) -> bool:
             return t is Monad
 
 
-def _head_family(ty: Node) -> Optional[Const]:
-    while True:
-        t = type(ty)
-        if t is Pi or t is Imp:
-            ty = ty.body
-        elif t is Root:
-            return ty.head
-        else:
-            return None
-
-
 class Program:
     """A checked, compiled CLF signature with its directives."""
 
@@ -51,8 +40,7 @@ class Program:
         for info in sig.consts.values():
             if info.is_family or info.definition is not None:
                 continue
-            fam = _head_family(info.classifier)
-            if fam is not None:
+            for fam in head_families(info.classifier):
                 self.clauses.setdefault(fam, []).append((info.name, info.classifier))
         self.backward_families = frozenset(self.clauses)
         self.templates: list[Template] = []
@@ -64,6 +52,7 @@ class Program:
                 self.templates.extend(compile_rule(info.name, info.classifier, info.pos, self.backward_families))
                 self.rule_names.append(info.name)
         self._ctx_cache: dict = {}
+        self.implicit = {info.const: info.implicit for info in sig.consts.values()}
 
     # ---------------------------------------------------------- loading
     @classmethod
@@ -86,8 +75,14 @@ class Program:
     def start_context(self, s: Node) -> Context:
         """A context holding the closed positive type ``s``."""
         ctx = Context()
+        ctx.implicit = self.implicit
         load_positive(ctx, s, self.compile_context_rule)
         return ctx
+
+    def show(self, t: Node) -> str:
+        """Print a term or type of this program (implicit arguments hidden)."""
+        from .printer import show
+        return show(t, implicit=self.implicit)
 
     def prover(self, bw: Optional[Backward] = None):
         """The callback forward matching uses for premises solved by proof search."""

@@ -15,7 +15,7 @@ from typing import Callable, Optional
 from ..errors import QueryError, RoarError
 from .backward import Backward, SearchLimit
 from .context import Context
-from .printer import show
+from .printer import show as _show
 from .program import Program
 from .rules import AFF, LIN, PERS
 from .signature import ExecDirective, QueryDirective
@@ -29,6 +29,11 @@ def _b(x) -> str:
 def show_context(ctx: Context) -> list[str]:
     """The context, one hypothesis a line, in a stable order (facts sorted by text)."""
     lines = []
+    imp = ctx.implicit
+
+    def show(t):
+        return _show(t, implicit=imp)
+
     for mode, t, n in ctx.facts():
         prefix = {LIN: "", AFF: "@", PERS: "!"}[mode]
         text = prefix + show(t)
@@ -55,6 +60,7 @@ class DirectiveResult:
 
 def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable[[str], None] = print,
               fair: bool = False) -> DirectiveResult:
+    show = program.show
     head = f"Query ({_b(q.depth)}, {_b(q.expected)}, {_b(q.look)}, {_b(q.attempts)}) {show(q.goal)}."
     emit(head)
     res = DirectiveResult("query", True)
@@ -95,7 +101,7 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
 def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[str], None] = print,
              trace: bool = False, fair: bool = False) -> DirectiveResult:
     kw = "Trace" if d.trace else "Exec"
-    emit(f"{kw} ({_b(d.steps)}) {show(d.start)}.")
+    emit(f"{kw} ({_b(d.steps)}) {program.show(d.start)}.")
     ctx = program.start_context(d.start)
     res = DirectiveResult("exec", True)
     show_each = d.trace or trace

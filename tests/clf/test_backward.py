@@ -137,19 +137,12 @@ def test_linear_hypotheses_are_distinct_outside_the_monad():
     assert res[0].solutions == 2
 
 
-@pytest.mark.xfail(strict=True, reason="engine bug: a hypothesis or clause of type A & B cannot be used "
-                                       "to prove A or B (backward._head_family / program._head_family "
-                                       "return None for With); Celf focuses on either half")
 def test_with_hypothesis_projects():
     res, _ = run(text="a : type. b : type.\n#query * * * 1 (a & b) -o a.\n#query * * * 1 (a & b) -o b.\n"
                       "c : type. ab : c & b.\n#query * * * 1 c.\n")
     assert [r.solutions for r in res] == [1, 1, 1]
 
 
-@pytest.mark.xfail(strict=True, reason="Celf compatibility: after the monad Celf matches each goal atom "
-                                       "against each hypothesis (OpSem.rightFocus -> solve -> matchAtom), "
-                                       "so two identical linear facts match `tok * tok` in 2 ways; the "
-                                       "engine matches a multiset (backward._match_pos) and finds 1")
 def test_monad_match_counts_identical_facts_like_celf():
     res, _ = run(text="tok : type.\n#query * * * 1 tok -o tok -o {tok * tok}.\n")
     assert res[0].solutions == 2

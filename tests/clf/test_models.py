@@ -314,10 +314,6 @@ def test_deadlock_depends_on_seed(capsys):
         assert [b.strip() for b in body] == list(final)
 
 
-@pytest.mark.xfail(strict=True, reason="engine bug: the printer's table of implicit-argument counts "
-                                       "(printer.IMPLICIT) is global and keyed by constant name, so loading a "
-                                       "second program that declares the same name changes how the first "
-                                       "program's terms print")
 def test_printing_is_per_program():
     miniml = Program.from_file(MODELS / "miniml.clf")
     res = with_big_stack(run_directives, miniml, emit=lambda s: None)

