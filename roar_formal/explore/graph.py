@@ -1,0 +1,97 @@
+"""The explored state graph, shared by every search backend and every property.
+
+States are numbered in discovery order (breadth-first by default, so the
+parent pointers give shortest paths). Edges are stored column-wise in growable
+arrays (source, target, label, fairness group, progress flag) so graphs of
+millions of transitions stay compact; properties read them as numpy arrays.
+"""
+
+from __future__ import annotations
+
+from array import array
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+
+class Interner:
+    """Small string table: labels and fairness groups become ints."""
+
+    def __init__(self) -> None:
+        self.names: list[str] = []
+        self.ids: dict[str, int] = {}
+
+    def __call__(self, name: str) -> int:
+        i = self.ids.get(name)
+        if i is None:
+            i = self.ids[name] = len(self.names)
+            self.names.append(name)
+        return i
+
+
+@dataclass
+class StateGraph:
+    """What a search found: states, transitions, and how each state was first reached."""
+
+    parent: array = field(default_factory=lambda: array("q"))  # -1 for the initial state
+    parent_edge: array = field(default_factory=lambda: array("q"))  # edge index, -1 for the initial state
+    depth: array = field(default_factory=lambda: array("l"))
+    expanded: array = field(default_factory=lambda: array("b"))  # 1 once successors are recorded
+    src: array = field(default_factory=lambda: array("q"))
+    dst: array = field(default_factory=lambda: array("q"))
+    label: array = field(default_factory=lambda: array("l"))
+    group: array = field(default_factory=lambda: array("l"))
+    progress: array = field(default_factory=lambda: array("b"))
+    labels: Interner = field(default_factory=Interner)
+    groups: Interner = field(default_factory=Interner)
+    complete: bool = False  # every reachable state was expanded
+    stop_reason: str = ""
+    describe_state: Optional[Callable[[int], list[str]]] = None  # state id -> printable lines
+    describe_edge: Optional[Callable[[int], str]] = None  # edge index -> printable step
+
+    @property
+    def n_states(self) -> int:
+        return len(self.parent)
+
+    @property
+    def n_edges(self) -> int:
+        return len(self.src)
+
+    def add_state(self, parent: int, edge: int, depth: int) -> int:
+        self.parent.append(parent)
+        self.parent_edge.append(edge)
+        self.depth.append(depth)
+        self.expanded.append(0)
+        return len(self.parent) - 1
+
+    def add_edge(self, s: int, t: int, label: str, group: str, progress: bool) -> int:
+        self.src.append(s)
+        self.dst.append(t)
+        self.label.append(self.labels(label))
+        self.group.append(self.groups(group))
+        self.progress.append(1 if progress else 0)
+        return len(self.src) - 1
+
+    # ------------------------------------------------------------ views
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Edge columns as numpy arrays (no copy)."""
+        return {
+            "src": np.frombuffer(self.src, dtype=np.int64) if len(self.src) else np.zeros(0, np.int64),
+            "dst": np.frombuffer(self.dst, dtype=np.int64) if len(self.dst) else np.zeros(0, np.int64),
+            "label": np.asarray(self.label, dtype=np.int64),
+            "group": np.asarray(self.group, dtype=np.int64),
+            "progress": np.asarray(self.progress, dtype=bool),
+        }
+
+    def path_to(self, s: int) -> list[int]:
+        """Edge indices of the discovery path from the initial state to ``s``."""
+        edges = []
+        while self.parent[s] >= 0:
+            edges.append(self.parent_edge[s])
+            s = self.parent[s]
+        edges.reverse()
+        return edges
+
+    def out_degree(self) -> np.ndarray:
+        return np.bincount(self.arrays()["src"], minlength=self.n_states)

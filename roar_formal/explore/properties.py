@@ -1,0 +1,211 @@
+"""Deadlock and livelock over an explored :class:`StateGraph`, with counterexamples.
+
+Deadlock: a quiescent state (no enabled step) that is not an accepted final
+state. In breadth-first order the first such state has a shortest path.
+
+Livelock: a reachable cycle with no progress event that is fair. Weak
+fairness is per group (a process: a philosopher, an agent): a cycle is unfair
+when some group is enabled in every state of it and never moves on it. In a
+strongly connected component C of the non-progress graph, the cycle through
+every edge of C is fair iff every group enabled in all states of C has an
+edge inside C; and if that fails no cycle inside C can be fair (such a group
+is enabled all along any of them). So one SCC computation decides it. Only
+fully expanded states are used: a fair cycle among them is a fair cycle of
+the whole system, so a livelock found in a partial graph is real, while
+"no livelock" needs the complete graph.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+from .graph import StateGraph
+
+
+@dataclass
+class Counterexample:
+    """A path (deadlock, safety) or a lasso (livelock): edge indices into the graph."""
+
+    kind: str  # 'path' or 'lasso'
+    prefix: list[int]
+    cycle: list[int] = field(default_factory=list)
+    final_state: int = 0
+
+    def length(self) -> int:
+        return len(self.prefix) + len(self.cycle)
+
+
+@dataclass
+class Verdict:
+    prop: str
+    status: str  # 'holds', 'violated' or 'incomplete'
+    message: str
+    counterexample: Optional[Counterexample] = None
+    details: dict = field(default_factory=dict)
+
+    @property
+    def violated(self) -> bool:
+        return self.status == "violated"
+
+
+def _incomplete(prop: str, g: StateGraph) -> Verdict:
+    return Verdict(prop, "incomplete",
+                   f"no {prop} in {g.n_states:,} states; search incomplete ({g.stop_reason})")
+
+
+# ---------------------------------------------------------------- deadlock
+
+
+def check_deadlock(g: StateGraph, accept: Optional[Callable[[int], bool]] = None) -> Verdict:
+    """The shortest path to a quiescent state that ``accept`` does not accept."""
+    a = g.arrays()
+    outdeg = np.bincount(a["src"], minlength=g.n_states)
+    expanded = np.asarray(g.expanded, dtype=bool)
+    quiescent = np.flatnonzero(expanded & (outdeg == 0))
+    n_final = 0
+    for s in quiescent:  # in discovery order: BFS depth is non-decreasing
+        s = int(s)
+        if accept is not None and accept(s):
+            n_final += 1
+            continue
+        cx = Counterexample("path", g.path_to(s), final_state=s)
+        n_dead = sum(1 for q in quiescent if accept is None or not accept(int(q)))
+        return Verdict("deadlock", "violated",
+                       f"deadlock reachable in {len(cx.prefix)} steps ({n_dead} deadlock state"
+                       f"{'s' if n_dead != 1 else ''} among {g.n_states:,} states)",
+                       cx, {"deadlock_states": n_dead, "final_states": n_final})
+    if not g.complete:
+        return _incomplete("deadlock", g)
+    return Verdict("deadlock", "holds", f"no deadlock in {g.n_states:,} states ({n_final} accepted final)",
+                   details={"final_states": n_final})
+
+
+# ---------------------------------------------------------------- livelock
+
+
+def _scc(n: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Strongly connected component label of each node."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    m = csr_matrix((np.ones(len(src), dtype=np.int8), (src, dst)), shape=(n, n))
+    _, labels = connected_components(m, directed=True, connection="strong")
+    return labels
+
+
+def check_livelock(g: StateGraph) -> Verdict:
+    """A fair cycle without progress, as a lasso; none on a complete graph means none at all."""
+    a = g.arrays()
+    n = g.n_states
+    expanded = np.asarray(g.expanded, dtype=bool)
+    src, dst, grp, prog = a["src"], a["dst"], a["group"], a["progress"]
+    inner = ~prog & expanded[src] & (dst < n)
+    inner &= expanded[np.minimum(dst, n - 1)]
+    isrc, idst = src[inner], dst[inner]
+    if len(isrc) == 0:
+        return _no_livelock(g)
+    comp = _scc(n, isrc, idst)
+    internal = comp[isrc] == comp[idst]
+    cand_edges = np.flatnonzero(inner)[internal]
+    if len(cand_edges) == 0:
+        return _no_livelock(g)
+    # groups enabled per state (any outgoing edge, progress or not), for expanded states
+    n_groups = len(g.groups.names)
+    comps = np.unique(comp[src[cand_edges]])
+    # order components by the shallowest state they contain: shortest prefix first
+    depth = np.asarray(g.depth, dtype=np.int64)
+    best = None
+    for c in comps:
+        members = np.flatnonzero((comp == c) & expanded)
+        edges_c = cand_edges[comp[src[cand_edges]] == c]
+        moving = set(np.unique(grp[edges_c]).tolist())
+        # groups enabled in every member state
+        mask = np.isin(src, members)
+        pairs = np.unique(np.stack([src[mask], grp[mask]], axis=1), axis=0)
+        counts = np.bincount(pairs[:, 1], minlength=n_groups)
+        always = set(np.flatnonzero(counts == len(members)).tolist())
+        starving = always - moving
+        if starving:
+            continue
+        entry = int(members[np.argmin(depth[members])])
+        key = int(depth[entry])
+        if best is None or key < best[0]:
+            best = (key, c, entry, edges_c, always)
+    if best is None:
+        return _no_livelock(g, unfair=True)
+    _, c, entry, edges_c, always = best
+    cycle = _tour(g, entry, edges_c, always, src, dst, grp)
+    cx = Counterexample("lasso", g.path_to(entry), cycle, final_state=entry)
+    names = sorted(g.groups.names[x] for x in set(grp[edges_c].tolist()))
+    return Verdict("livelock", "violated",
+                   f"fair livelock: a cycle of {len(cycle)} steps without progress, reached in "
+                   f"{len(cx.prefix)} steps (groups moving: {', '.join(names)})",
+                   cx, {"cycle_states": int(np.sum(comp == c))})
+
+
+def _no_livelock(g: StateGraph, unfair: bool = False) -> Verdict:
+    if not g.complete:
+        return _incomplete("livelock", g)
+    extra = " (cycles without progress exist but are all unfair)" if unfair else ""
+    return Verdict("livelock", "holds", f"no fair livelock in {g.n_states:,} states{extra}",
+                   details={"unfair_cycles": unfair})
+
+
+def _tour(g: StateGraph, entry: int, edges_c: np.ndarray, required: set, src, dst, grp) -> list[int]:
+    """A fair cycle from ``entry`` inside the component: start from any cycle, then splice
+    in detours until every group enabled all along it either moves or meets a state
+    where it is disabled (terminates: each detour fixes one group for good)."""
+    adj: dict[int, list[int]] = {}
+    for e in edges_c.tolist():
+        adj.setdefault(int(src[e]), []).append(e)
+
+    def path(a: int, goal: Callable[[int], bool]) -> list[int]:
+        """Shortest edge path from ``a`` whose last edge satisfies ``goal`` (at least one edge)."""
+        prev: dict[int, int] = {}
+        q = deque([a])
+        seen = {a}
+        while q:
+            u = q.popleft()
+            for e in adj.get(u, ()):
+                if goal(e):
+                    out = [e]
+                    w = u
+                    while w != a:
+                        e2 = prev[w]
+                        out.append(e2)
+                        w = int(src[e2])
+                    out.reverse()
+                    return out
+                v = int(dst[e])
+                if v not in seen:
+                    seen.add(v)
+                    prev[v] = e
+                    q.append(v)
+        raise AssertionError("component is not strongly connected")
+
+    # enabled groups of each member state (any outgoing edge counts)
+    members = set(adj)
+    enabled: dict[int, set] = {m: set() for m in members}
+    for e in np.flatnonzero(np.isin(src, np.fromiter(members, dtype=np.int64))).tolist():
+        enabled[int(src[e])].add(int(grp[e]))
+    internal_groups = {int(grp[e]) for e in edges_c.tolist()}
+    cycle = path(entry, lambda e: int(dst[e]) == entry)
+    while True:
+        states = [int(src[e]) for e in cycle]
+        moving = {int(grp[e]) for e in cycle}
+        always = set.intersection(*(enabled[x] for x in states))
+        starving = sorted(always - moving)
+        if not starving:
+            return cycle
+        gsel = starving[0]
+        if gsel in internal_groups:  # let it move
+            seg = path(entry, lambda e: int(grp[e]) == gsel)
+        else:  # visit a state where it is disabled
+            seg = path(entry, lambda e: gsel not in enabled.get(int(dst[e]), ()))
+        here = int(dst[seg[-1]])
+        back = path(here, lambda e: int(dst[e]) == entry) if here != entry else []
+        cycle = seg + back + cycle

@@ -1,0 +1,90 @@
+"""Transition systems the explorer searches: CLF programs seen through the engine.
+
+:class:`ClfSystem` wraps a :class:`~roar_formal.clf.program.Program` and a
+start context; its successors are exactly the engine's enumerated steps
+(``Program.steps`` / ``Program.successor``), its states are compared up to
+renaming of fresh names (``canonical_key``). Each step carries a fairness
+group (which process moved) and a progress flag, both set by the property
+file's options.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass, field
+from typing import Optional
+
+from ..clf.context import Context
+from ..clf.program import Program
+from ..clf.query import show_context
+from ..clf.rules import PERS
+from ..clf.state import canonical_key
+
+
+@dataclass
+class Options:
+    """How steps are classified for liveness properties."""
+
+    progress_rules: tuple[str, ...] = ()  # rule names (globs) whose steps are progress events
+    fairness: str = "first-argument"  # 'first-argument' | 'rule' | 'none'
+    canonical: bool = True  # identify states up to renaming of fresh names
+
+
+@dataclass
+class Successor:
+    label: str
+    group: str
+    progress: bool
+    state: Context
+    step: object = field(repr=False, default=None)
+
+
+class ClfSystem:
+    """A CLF program and a start context, stepped by the engine's enumeration driver."""
+
+    def __init__(self, program: Program, start: Context, options: Optional[Options] = None):
+        self.program = program
+        self.start = start
+        self.options = options or Options()
+
+    def initial(self) -> Context:
+        return self.start
+
+    def key(self, state: Context):
+        return canonical_key(state) if self.options.canonical else _plain_key(state)
+
+    def successors(self, state: Context) -> list[Successor]:
+        out = []
+        for choice in self.program.steps(state):
+            nxt, step = self.program.successor(state, choice)
+            out.append(Successor(choice.rule, self._group(choice), self._progress(choice.rule), nxt, step))
+        return out
+
+    def _progress(self, rule: str) -> bool:
+        return any(fnmatch.fnmatchcase(rule, pat) for pat in self.options.progress_rules)
+
+    def _group(self, choice) -> str:
+        mode = self.options.fairness
+        if mode == "none":
+            return "*"
+        if mode == "rule":
+            return choice.rule
+        # the process is named by the first argument of the first consumed linear fact
+        for m, fact in choice.consumed:
+            if m != PERS and fact.args:
+                return self.program.show(fact.args[0])
+        return choice.rule
+
+    def describe(self, state: Context) -> list[str]:
+        return show_context(state)
+
+
+def _plain_key(ctx: Context):
+    from collections import Counter
+
+    c: Counter = Counter()
+    for mode, t, n in ctx.facts():
+        c[(mode, t)] += n
+    for r in ctx.rules.values():
+        c[("rule", id(r.alts[0]) if r.alts else 0, r.env, r.mode)] += 1
+    return frozenset(c.items())
