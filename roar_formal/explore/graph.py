@@ -30,6 +30,14 @@ class Interner:
         return i
 
 
+def _np(x, dtype) -> np.ndarray:
+    if isinstance(x, np.ndarray):
+        return x
+    if len(x) == 0:
+        return np.zeros(0, dtype=dtype)
+    return np.frombuffer(x, dtype=np.dtype(x.typecode)).astype(dtype, copy=False)
+
+
 @dataclass
 class StateGraph:
     """What a search found: states, transitions, and how each state was first reached."""
@@ -75,13 +83,13 @@ class StateGraph:
 
     # ------------------------------------------------------------ views
     def arrays(self) -> dict[str, np.ndarray]:
-        """Edge columns as numpy arrays (no copy)."""
+        """Edge columns as numpy arrays (no copy where the storage already is one)."""
         return {
-            "src": np.frombuffer(self.src, dtype=np.int64) if len(self.src) else np.zeros(0, np.int64),
-            "dst": np.frombuffer(self.dst, dtype=np.int64) if len(self.dst) else np.zeros(0, np.int64),
-            "label": np.asarray(self.label, dtype=np.int64),
-            "group": np.asarray(self.group, dtype=np.int64),
-            "progress": np.asarray(self.progress, dtype=bool),
+            "src": _np(self.src, np.int64),
+            "dst": _np(self.dst, np.int64),
+            "label": _np(self.label, np.int64),
+            "group": _np(self.group, np.int64),
+            "progress": _np(self.progress, np.int8).astype(bool),
         }
 
     def path_to(self, s: int) -> list[int]:

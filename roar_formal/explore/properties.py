@@ -113,28 +113,33 @@ def check_livelock(g: StateGraph) -> Verdict:
     cand_edges = np.flatnonzero(inner)[internal]
     if len(cand_edges) == 0:
         return _no_livelock(g)
-    # groups enabled per state (any outgoing edge, progress or not), for expanded states
-    n_groups = len(g.groups.names)
-    comps = np.unique(comp[src[cand_edges]])
-    # order components by the shallowest state they contain: shortest prefix first
-    depth = np.asarray(g.depth, dtype=np.int64)
+    # Per candidate component: groups enabled in every member state (any outgoing edge,
+    # progress or not) must all move inside it. Vectorised over all components at once.
+    n_groups = max(1, len(g.groups.names))
+    cand_comps = np.unique(comp[isrc[internal]])
+    is_cand = np.zeros(comp.max() + 1, dtype=bool)
+    is_cand[cand_comps] = True
+    member = expanded & is_cand[comp]
+    size = np.bincount(comp[member], minlength=len(is_cand))
+    em = member[src]
+    pairs = np.unique(src[em] * n_groups + grp[em])
+    pc = comp[pairs // n_groups]
+    always = np.bincount(pc * n_groups + pairs % n_groups, minlength=len(is_cand) * n_groups)
+    always = always.reshape(len(is_cand), n_groups) == size[:, None]
+    moving = np.zeros((len(is_cand), n_groups), dtype=bool)
+    ci = comp[src[cand_edges]]
+    moving[ci, grp[cand_edges]] = True
+    starving = (always & ~moving).any(axis=1)
+    fair = cand_comps[~starving[cand_comps]]
     best = None
-    for c in comps:
-        members = np.flatnonzero((comp == c) & expanded)
-        edges_c = cand_edges[comp[src[cand_edges]] == c]
-        moving = set(np.unique(grp[edges_c]).tolist())
-        # groups enabled in every member state
-        mask = np.isin(src, members)
-        pairs = np.unique(np.stack([src[mask], grp[mask]], axis=1), axis=0)
-        counts = np.bincount(pairs[:, 1], minlength=n_groups)
-        always = set(np.flatnonzero(counts == len(members)).tolist())
-        starving = always - moving
-        if starving:
-            continue
-        entry = int(members[np.argmin(depth[members])])
-        key = int(depth[entry])
-        if best is None or key < best[0]:
-            best = (key, c, entry, edges_c, always)
+    if len(fair):
+        depth = np.asarray(g.depth, dtype=np.int64)
+        # the fair component holding the shallowest state: shortest prefix
+        fm = np.flatnonzero(member & np.isin(comp, fair))
+        entry = int(fm[np.argmin(depth[fm])])
+        c = comp[entry]
+        edges_c = cand_edges[ci == c]
+        best = (int(depth[entry]), c, entry, edges_c, set(np.flatnonzero(always[c]).tolist()))
     if best is None:
         return _no_livelock(g, unfair=True)
     _, c, entry, edges_c, always = best
