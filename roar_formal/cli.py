@@ -7,6 +7,7 @@ wires them together and turns user errors into located messages (no traceback).
 
 from __future__ import annotations
 
+import os
 import sys
 
 import typer
@@ -33,8 +34,10 @@ def _root() -> None:
 
 def _register_all() -> None:
     from .clf import commands as clf_commands
+    from .explore import commands as explore_commands
+    from .tca import commands as tca_commands
 
-    for module in (clf_commands,):
+    for module in (clf_commands, explore_commands, tca_commands):
         module.register(app)
 
 
@@ -48,6 +51,13 @@ def main(argv: list[str] | None = None) -> None:
     except RoarError as exc:
         err_console.print(f"[bold red]error:[/] {escape(exc.format())}", markup=True, soft_wrap=True)
         sys.exit(2)
+    except Exception as exc:  # a bug of ours, not the user's: short message, traceback on request
+        if os.environ.get("ROAR_DEBUG"):
+            raise
+        err_console.print(f"[bold red]internal error:[/] {escape(type(exc).__name__)}: {escape(str(exc))}\n"
+                          "This is a bug in roar-formal; rerun with ROAR_DEBUG=1 to see the traceback.",
+                          markup=True, soft_wrap=True)
+        sys.exit(3)
 
 
 if __name__ == "__main__":  # pragma: no cover

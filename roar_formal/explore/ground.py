@@ -406,6 +406,7 @@ class GroundExplorer:
         self.words = all_words
         self.edge_inst = inst_all
         g.describe_state = self.describe_state
+        g.describe_edge = self.describe_edge
         self.seconds = time.perf_counter() - t0
         return g
 
@@ -417,3 +418,14 @@ class GroundExplorer:
 
     def describe_state(self, sid: int) -> list[str]:
         return self.model.describe_row(self.row_of(sid))
+
+    def describe_edge(self, e: int) -> dict:
+        inst = self.model.instances[int(self.edge_inst[e])]
+        return {"rule": inst.rule, "consumed": self._facts(inst.consume), "produced": self._facts(inst.produce)}
+
+    def _facts(self, cols: dict) -> list[str]:
+        out = []
+        for c, k in sorted(cols.items()):
+            mode, t = self.model.facts[c]
+            out += [{"1": "", "@": "@", "!": "!"}[mode] + self.model.program.show(t)] * k
+        return out

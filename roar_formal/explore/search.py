@@ -46,7 +46,9 @@ class Explorer:
         s0 = system.initial()
         self._add(s0, -1, -1, 0)
         self.frontier: deque[int] = deque([0])
+        self.steps: list = []  # edge index -> engine step (for describing counterexamples)
         self.graph.describe_state = lambda i: system.describe(self.states[i])
+        self.graph.describe_edge = lambda e: system.describe_step(self.steps[e])
         self.started = time.perf_counter()
         self.elapsed = 0.0
 
@@ -83,6 +85,7 @@ class Explorer:
                 if new:
                     t = len(self.states)
                 e = g.add_edge(s, t, succ.label, succ.group, succ.progress)
+                self.steps.append(succ.step)
                 if new:
                     self._add(succ.state, s, e, depth)
                     self.frontier.append(t)

@@ -78,6 +78,19 @@ class ClfSystem:
     def describe(self, state: Context) -> list[str]:
         return show_context(state)
 
+    def describe_step(self, step) -> dict:
+        """What a step consumed and produced, printed (for counterexamples and traces)."""
+        show = self.program.show
+        consumed = [_mode(m) + show(t) for m, t in step.consumed if m != PERS]
+        produced = []
+        for m, x in step.produced:
+            produced.append(_mode(m) + (show(x) if not hasattr(x, "source") else "(" + show(x.source) + ")"))
+        return {"rule": step.rule, "consumed": consumed, "produced": produced}
+
+
+def _mode(m: str) -> str:
+    return {"1": "", "@": "@", "!": "!"}[m]
+
 
 def _plain_key(ctx: Context):
     from collections import Counter

@@ -1,0 +1,171 @@
+"""Running a verification job: load, choose a backend, search, decide, explain.
+
+The search grows its state budget geometrically and re-decides after each
+round: a violation found in a partial graph is real (a deadlock is an
+expanded quiescent state; a livelock is a fair cycle among expanded states)
+and, in breadth-first order, shortest; "holds" needs the complete graph. So
+a livelock near the start of a huge graph is reported at once, and a budget
+that runs out gives an honest "incomplete" verdict, never "verified".
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+from ..clf.backward import Backward
+from ..clf.context import Context
+from ..clf.parser import parse_expr
+from ..clf.program import Program
+from ..clf.query import with_big_stack
+from ..clf.signature import Elaborator, ExecDirective
+from ..errors import RoarError
+from ..trace.format import write_trace
+from .graph import StateGraph
+from .ground import GroundExplorer, GroundModel, NotGround
+from .jobs import Job
+from .properties import Verdict, check_deadlock, check_livelock
+from .search import Budget, Explorer, rss_mb
+from .system import ClfSystem, Options
+
+FIRST_ROUND = 20_000
+
+
+@dataclass
+class JobResult:
+    job: Job
+    verdicts: dict[str, Verdict]
+    graph: StateGraph
+    backend: str
+    seconds: float
+    memory_mb: float
+    mismatches: list[str] = field(default_factory=list)
+    program: Optional[Program] = None
+
+    @property
+    def ok(self) -> bool:
+        return not self.mismatches
+
+
+def load_model(job: Job) -> tuple[Program, Context]:
+    program = Program.from_file(job.model)
+    execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
+    if not execs:
+        raise RoarError(f"{job.model} has no #exec directive to start the search from", None)
+    if job.start > len(execs):
+        raise RoarError(f"{job.path}: 'start = {job.start}' but {job.model.name} has only {len(execs)} #exec "
+                        "directive(s)")
+    return program, program.start_context(execs[job.start - 1].start)
+
+
+def make_accept(program: Program, text: str, where: str) -> Callable[[Context], bool]:
+    """A final-state test from a positive CLF type: the context must match it exactly
+    (every linear fact accounted for; affine ones may be left over)."""
+    expr = parse_expr(text, file=where)
+    el = Elaborator(program.sig)
+    el._begin()
+    s = el.pos(expr)
+    el._solve_postponed(expr.pos)
+    for x in el.evars:
+        x.scope = 1 << 62  # pattern variables may stand for fresh names
+
+    def accept(ctx: Context) -> bool:
+        bw = Backward(program)
+        return any(True for _ in bw._match_pos(s, ctx))
+
+    return accept
+
+
+def run_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
+    return with_big_stack(_run_job, job, on_progress)
+
+
+def _run_job(job: Job, on_progress) -> JobResult:
+    t0 = time.perf_counter()
+    program, start = load_model(job)
+    props = job.props
+    options = Options(progress_rules=tuple(props.progress), fairness=props.fairness, canonical=job.canonical)
+    accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
+                             "[deadlock] accept") if props.accept else None
+    ground_model = None
+    if job.backend in ("auto", "ground") and job.search == "bfs":
+        try:
+            ground_model = GroundModel(program, start, options)
+        except NotGround as exc:
+            if job.backend == "ground":
+                raise RoarError(f"{job.path}: backend 'ground' cannot run this model: {exc}") from None
+    backend = "ground" if ground_model is not None else "general"
+    general = None if ground_model else Explorer(ClfSystem(program, start, options), job.search, on_progress)
+    limit = job.budget.max_states
+    k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
+    verdicts: dict[str, Verdict] = {}
+    while True:
+        remaining = None
+        if job.budget.max_seconds is not None:
+            remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
+        budget = Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb)
+        if ground_model is not None:
+            gx = GroundExplorer(ground_model, on_progress)
+            graph = gx.run(budget)
+            state_of = lambda sid, gx=gx: _row_context(ground_model, gx.row_of(sid))  # noqa: E731
+        else:
+            graph = general.run(budget)
+            state_of = lambda sid: general.states[sid]  # noqa: E731
+        accept = (lambda sid: accept_ctx(state_of(sid))) if accept_ctx else None
+        verdicts = {}
+        for p in props.check:
+            verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else check_livelock(graph)
+        if graph.complete or all(v.violated for v in verdicts.values()):
+            break
+        if "state budget" not in graph.stop_reason or (limit is not None and k >= limit):
+            break
+        k = k * 4 if limit is None else min(k * 4, limit)
+    mismatches = []
+    for p, want in job.expect.items():
+        got = verdicts[p].status
+        if got != want:
+            mismatches.append(f"{p}: expected {want}, got {got}")
+    return JobResult(job, verdicts, graph, backend, time.perf_counter() - t0, rss_mb(), mismatches, program)
+
+
+def _row_context(model: GroundModel, row) -> Context:
+    ctx = Context()
+    ctx.implicit = model.program.implicit
+    for c, n in enumerate(row):
+        mode, t = model.facts[c]
+        for _ in range(int(n)):
+            ctx.add_fact(t, mode)
+    return ctx
+
+
+# ---------------------------------------------------------------- counterexamples
+
+
+def counterexample_steps(graph: StateGraph, verdict: Verdict) -> list[dict]:
+    """The counterexample as trace records (ROAR-level events are added by the ROAR layer)."""
+    cx = verdict.counterexample
+    out = []
+    for loop, edges in ((False, cx.prefix), (True, cx.cycle)):
+        for e in edges:
+            rec = graph.describe_edge(e) if graph.describe_edge else {"rule": graph.labels.names[graph.label[e]]}
+            rec = dict(rec)
+            rec["group"] = graph.groups.names[int(graph.group[e])]
+            rec["event"] = None
+            rec["loop"] = loop
+            out.append(rec)
+    return out
+
+
+def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
+    v = result.verdicts[prop]
+    steps = counterexample_steps(result.graph, v)
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in result.job.name)
+    path = folder / f"{safe}.{prop}.jsonl"
+    header = {"kind": "counterexample", "property": prop, "model": str(result.job.model),
+              "start": result.job.start, "job": str(result.job.path), "shape": v.counterexample.kind,
+              "final_state": result.graph.describe_state(v.counterexample.final_state)
+              if result.graph.describe_state else []}
+    write_trace(path, header, steps)
+    return path

@@ -1,0 +1,168 @@
+"""``roar-verify check PATH...`` and ``roar-verify replay TRACE``."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+from rich.live import Live
+from rich.markup import escape
+from rich.table import Table
+
+from ..errors import RoarError
+
+_STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("check")
+    def check(
+        paths: List[Path] = typer.Argument(..., help="Job files (*.toml) or folders of them."),
+        as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the facts each step consumed and produced."),
+        traces: Path = typer.Option(Path("roar-traces"), "--traces",
+                                    help="Folder where counterexample traces are written."),
+        no_traces: bool = typer.Option(False, "--no-traces", help="Do not write counterexample traces."),
+    ) -> None:
+        """Run verification jobs; exit 0 only when every verdict is the expected one."""
+        from .check import run_job, save_counterexample
+        from .jobs import find_jobs, load_job
+
+        console = Console(highlight=False, stderr=as_json)
+        files = find_jobs(paths)
+        jobs = [load_job(f) for f in files]  # every job file is checked before anything runs
+        results = []
+        for job in jobs:
+            status = {"text": f"{job.name}: loading"}
+
+            def progress(st: dict, job=job) -> None:
+                status["text"] = (f"{job.name}: {st['states']:,} states, {st['transitions']:,} transitions, "
+                                  f"{st['states_per_s']:,.0f} states/s, frontier {st['frontier']:,}, "
+                                  f"{st['memory_mb']:,.0f} MiB")
+                live.update(status["text"])
+
+            with Live(status["text"], console=console, transient=True,
+                      refresh_per_second=4, redirect_stdout=False) as live:
+                res = run_job(job, progress)
+            results.append(res)
+            saved = {}
+            if not no_traces:
+                for p, v in res.verdicts.items():
+                    if v.counterexample is not None:
+                        saved[p] = save_counterexample(res, p, traces)
+            res.saved = saved
+            if not as_json:
+                _print_result(console, res, verbose)
+        if as_json:
+            print(json.dumps([_json(r) for r in results], indent=2))
+        else:
+            _summary(console, results)
+        if not all(r.ok for r in results):
+            raise typer.Exit(1)
+
+    @app.command("replay")
+    def replay_cmd(
+        trace: Path = typer.Argument(..., help="A trace written by 'roar-verify check' (JSON Lines)."),
+        model: Optional[Path] = typer.Option(None, "--model", help="The model, if the trace does not name it."),
+        states: bool = typer.Option(False, "--states", help="Print the whole state after every step."),
+    ) -> None:
+        """Step through a trace on the engine, checking that every step is enabled."""
+        from ..clf.query import show_context, with_big_stack
+        from ..trace.replay import replay
+
+        console = Console(highlight=False)
+
+        def on_step(i, rec, state):
+            loop = " (cycle)" if rec.get("loop") else ""
+            console.print(f"[bold]{i:>4}.[/] {escape(rec.get('rule', '?'))} [dim]\\[{escape(str(rec.get('group', '')))}]"
+                          f"{loop}[/]  {escape(', '.join(rec.get('consumed', [])))} -> "
+                          f"{escape(', '.join(rec.get('produced', [])))}")
+            if states:
+                for line in show_context(state):
+                    console.print(f"        {escape(line)}")
+
+        res = with_big_stack(replay, trace, on_step, str(model) if model else None)
+        tail = " and the cycle closes" if res.cycle_closes else ""
+        console.print(f"[green]replayed {res.steps} step{'s' if res.steps != 1 else ''}{tail}[/]")
+
+
+def _print_result(console: Console, res, verbose: bool) -> None:
+    head = "[green]ok[/]" if res.ok else "[red]UNEXPECTED[/]"
+    g = res.graph
+    console.print(f"{head} [bold]{escape(res.job.name)}[/]  ({g.n_states:,} states, {g.n_edges:,} transitions, "
+                  f"{res.seconds:.2f} s, backend {res.backend})")
+    for p, v in res.verdicts.items():
+        console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}")
+        if v.counterexample is not None:
+            _print_cx(console, res, p, verbose)
+    for m in res.mismatches:
+        console.print(f"  [red]{escape(m)}[/]")
+
+
+def _print_cx(console: Console, res, prop: str, verbose: bool) -> None:
+    from .check import counterexample_steps
+
+    v = res.verdicts[prop]
+    steps = counterexample_steps(res.graph, v)
+    for i, s in enumerate(steps, 1):
+        if s["loop"] and (i == 1 or not steps[i - 2]["loop"]):
+            console.print("    [yellow]-- cycle (repeats forever) --[/]")
+        line = f"    {i:>3}. \\[{escape(s['group'])}] {escape(s['rule'])}"
+        if verbose:
+            line += f"  {escape(', '.join(s.get('consumed', [])))} -> {escape(', '.join(s.get('produced', [])))}"
+        console.print(line)
+    if v.counterexample.kind == "path" and res.graph.describe_state:
+        final = res.graph.describe_state(v.counterexample.final_state)
+        console.print("    final state: " + escape("; ".join(x for x in final if not x.startswith("!"))))
+    saved = getattr(res, "saved", {}).get(prop)
+    if saved:
+        console.print(f"    trace: {escape(str(saved))}  (roar-verify replay {escape(str(saved))})")
+
+
+def _summary(console: Console, results) -> None:
+    t = Table(title="verification summary")
+    t.add_column("job")
+    props = sorted({p for r in results for p in r.verdicts})
+    for p in props:
+        t.add_column(p)
+    t.add_column("states", justify="right")
+    t.add_column("time", justify="right")
+    t.add_column("result")
+    for r in results:
+        cells = []
+        for p in props:
+            v = r.verdicts.get(p)
+            if v is None:
+                cells.append("-")
+            else:
+                want = r.job.expect.get(p)
+                mark = "" if want is None or want == v.status else f" (want {want})"
+                cells.append(f"[{_STYLE[v.status]}]{v.status}[/]{mark}")
+        t.add_row(escape(r.job.name), *cells, f"{r.graph.n_states:,}", f"{r.seconds:.2f} s",
+                  "[green]as expected[/]" if r.ok else "[red]unexpected[/]")
+    console.print(t)
+
+
+def _json(r) -> dict:
+    from .check import counterexample_steps
+
+    out = {"job": r.job.name, "file": str(r.job.path), "model": str(r.job.model), "ok": r.ok,
+           "backend": r.backend, "states": r.graph.n_states, "transitions": r.graph.n_edges,
+           "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4), "memory_mb": round(r.memory_mb, 1),
+           "mismatches": r.mismatches, "verdicts": {}}
+    for p, v in r.verdicts.items():
+        d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
+        if v.counterexample is not None:
+            d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v)}
+            saved = getattr(r, "saved", {}).get(p)
+            if saved:
+                d["trace"] = str(saved)
+        out["verdicts"][p] = d
+    return out
+
+
+__all__ = ["register", "sys"]

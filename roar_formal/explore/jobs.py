@@ -1,0 +1,191 @@
+"""Verification jobs (``checker/*.toml``) and property files (``properties/*.toml``).
+
+A job names a model, a start state, the property files that say what must
+hold, search bounds and the expected verdict of each property. Paths in a
+job are relative to the job file. Every mistake in a file is reported with
+the file (and, where TOML gives it, the line and column) and what was
+expected.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+from ..errors import Pos, RoarError
+from .search import Budget
+
+PROPERTIES = ("deadlock", "livelock")
+STATUSES = ("holds", "violated")
+
+
+@dataclass
+class PropertySpec:
+    """What must hold, read from one or more property files."""
+
+    check: list[str] = field(default_factory=list)
+    progress: list[str] = field(default_factory=list)
+    fairness: str = "first-argument"
+    accept: Optional[str] = None  # a positive CLF type: quiescent states matching it are final
+    sources: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Job:
+    path: Path
+    name: str
+    model: Path
+    start: int = 1
+    props: PropertySpec = field(default_factory=PropertySpec)
+    expect: dict[str, str] = field(default_factory=dict)
+    budget: Budget = field(default_factory=Budget)
+    backend: str = "auto"
+    search: str = "bfs"
+    canonical: bool = True
+
+
+def _load_toml(path: Path) -> dict:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RoarError(f"cannot read {path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RoarError(f"cannot read {path}: {exc}") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        msg = str(exc)
+        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
+        pos = Pos(str(path), int(m.group(1)), int(m.group(2))) if m else Pos(str(path), 1, 1)
+        brief = re.sub(r" \(at line .*", "", msg)
+        raise RoarError(f"invalid TOML: {brief}", pos) from None
+
+
+def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
+    for k in d:
+        if k not in allowed:
+            raise RoarError(f"unknown key '{k}' in {where}; expected one of: {', '.join(sorted(allowed))}",
+                            Pos(str(path), _line_of(path, k), 1))
+
+
+def _line_of(path: Path, key: str) -> int:
+    try:
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if re.match(rf"\s*\[*\s*{re.escape(key)}\s*[=\]]", line):
+                return n
+    except OSError:
+        pass
+    return 1
+
+
+def _typed(d: dict, key: str, ty, path: Path, what: str) -> Any:
+    v = d[key]
+    if ty is int and isinstance(v, bool) or not isinstance(v, ty):
+        tn = {int: "an integer", str: "a string", list: "a list", bool: "true or false",
+              float: "a number", dict: "a table"}.get(ty, str(ty))
+        raise RoarError(f"'{key}' in {what} must be {tn}, not {v!r}", Pos(str(path), _line_of(path, key), 1))
+    return v
+
+
+def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
+    spec = into or PropertySpec()
+    d = _load_toml(path)
+    _expect_keys(d, {"description", "check", "livelock", "deadlock"}, "a property file", path)
+    if "check" in d:
+        for p in _typed(d, "check", list, path, "a property file"):
+            if p not in PROPERTIES:
+                raise RoarError(f"unknown property '{p}'; expected one of: {', '.join(PROPERTIES)}",
+                                Pos(str(path), _line_of(path, "check"), 1))
+            if p not in spec.check:
+                spec.check.append(p)
+    if "livelock" in d:
+        ll = _typed(d, "livelock", dict, path, "a property file")
+        _expect_keys(ll, {"progress", "fairness"}, "[livelock]", path)
+        if "progress" in ll:
+            spec.progress += [str(x) for x in _typed(ll, "progress", list, path, "[livelock]")]
+        if "fairness" in ll:
+            f = _typed(ll, "fairness", str, path, "[livelock]")
+            if f not in ("first-argument", "rule", "none"):
+                raise RoarError(f"fairness must be 'first-argument', 'rule' or 'none', not '{f}'",
+                                Pos(str(path), _line_of(path, "fairness"), 1))
+            spec.fairness = f
+    if "deadlock" in d:
+        dl = _typed(d, "deadlock", dict, path, "a property file")
+        _expect_keys(dl, {"accept"}, "[deadlock]", path)
+        if "accept" in dl:
+            spec.accept = _typed(dl, "accept", str, path, "[deadlock]")
+    spec.sources.append(str(path))
+    return spec
+
+
+def load_job(path: str | Path) -> Job:
+    path = Path(path)
+    d = _load_toml(path)
+    _expect_keys(d, {"name", "model", "start", "properties", "backend", "search", "canonical", "bounds", "expect"},
+                 "a job file", path)
+    if "model" not in d:
+        raise RoarError("a job needs 'model = \"path/to/model.clf\"'", Pos(str(path), 1, 1))
+    base = path.parent
+    model = (base / _typed(d, "model", str, path, "a job file")).resolve()
+    job = Job(path=path, name=str(d.get("name", path.stem)), model=model)
+    if "start" in d:
+        job.start = _typed(d, "start", int, path, "a job file")
+        if job.start < 1:
+            raise RoarError("'start' counts #exec directives from 1", Pos(str(path), _line_of(path, "start"), 1))
+    props = d.get("properties", [])
+    if isinstance(props, str):
+        props = [props]
+    if not isinstance(props, list):
+        raise RoarError("'properties' must be a path or a list of paths", Pos(str(path), _line_of(path, "properties"), 1))
+    for p in props:
+        load_properties((base / p).resolve(), job.props)
+    for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs"))):
+        if key in d:
+            v = _typed(d, key, str, path, "a job file")
+            if v not in allowed:
+                raise RoarError(f"'{key}' must be one of {', '.join(allowed)}, not '{v}'",
+                                Pos(str(path), _line_of(path, key), 1))
+            setattr(job, key, v)
+    if "canonical" in d:
+        job.canonical = _typed(d, "canonical", bool, path, "a job file")
+    if "bounds" in d:
+        b = _typed(d, "bounds", dict, path, "a job file")
+        _expect_keys(b, {"max_states", "max_seconds", "max_memory_mb"}, "[bounds]", path)
+        job.budget = Budget(
+            max_states=_typed(b, "max_states", int, path, "[bounds]") if "max_states" in b else None,
+            max_seconds=float(_typed(b, "max_seconds", (int, float), path, "[bounds]")) if "max_seconds" in b else None,
+            max_memory_mb=_typed(b, "max_memory_mb", int, path, "[bounds]") if "max_memory_mb" in b else None,
+        )
+    if "expect" in d:
+        e = _typed(d, "expect", dict, path, "a job file")
+        _expect_keys(e, set(PROPERTIES), "[expect]", path)
+        for k, v in e.items():
+            if v not in STATUSES:
+                raise RoarError(f"expected verdict of '{k}' must be 'holds' or 'violated', not {v!r}",
+                                Pos(str(path), _line_of(path, k), 1))
+            job.expect[k] = v
+            if k not in job.props.check:
+                job.props.check.append(k)
+    if not job.props.check:
+        raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
+                        Pos(str(path), 1, 1))
+    return job
+
+
+def find_jobs(paths: list[str | Path]) -> list[Path]:
+    """Job files named directly or found (``*.toml``) in the given folders, sorted."""
+    out: list[Path] = []
+    for p in paths:
+        p = Path(p)
+        if p.is_dir():
+            out += sorted(q for q in p.glob("*.toml"))
+        elif p.exists():
+            out.append(p)
+        else:
+            raise RoarError(f"no such job file or folder: {p}")
+    if not out:
+        raise RoarError("no job files (*.toml) found in " + ", ".join(str(p) for p in paths))
+    return out
