@@ -415,7 +415,7 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
         b = [None] * t.nslots
         for consumed in find_matches(ctx, t, b, -1, prover, all_modes=True):
             c = Choice(t, None, tuple(b), tuple(consumed))
-            key = (id(t), c.bindings, tuple(sorted(map(id, c.consumed))))
+            key = (id(t), c.bindings, _multiset_key(c.consumed))
             if key not in seen:
                 seen.add(key)
                 yield c
@@ -430,6 +430,11 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
                 yield Choice(t, r.uid, tuple(b), tuple(consumed))
                 if first_only:
                     return
+
+
+def _multiset_key(consumed) -> tuple:
+    """The consumed facts as a multiset, independent of the order premises were matched in."""
+    return tuple(sorted((m, id(t)) for m, t in consumed))
 
 
 def successor(ctx: Context, choice: Choice) -> tuple[Context, Step]:

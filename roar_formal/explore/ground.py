@@ -32,7 +32,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..clf.context import Context
-from ..clf.forward import enabled_steps, fire
+from ..clf.forward import _multiset_key, enabled_steps, fire
 from ..clf.program import Program
 from ..clf.rules import AFF, LIN, PERS
 from .graph import Interner, StateGraph
@@ -98,7 +98,7 @@ class GroundModel:
                     universe.add_fact(t, mode)
             before = len(self.facts)
             for choice in enabled_steps(self.program.templates, universe):
-                key = (id(choice.template), choice.bindings, choice.consumed)
+                key = (id(choice.template), choice.bindings, _multiset_key(choice.consumed))
                 if key in seen_inst:
                     continue
                 seen_inst.add(key)

@@ -1,0 +1,300 @@
+"""The functional-layer binding: Python callables behind a spec's functions.
+
+A spec declares functions (``double distance(point, point);``) and variables
+whose reads run a task (``int pos = get_pos();``) but not how the robot
+computes them. A :class:`Registry` maps those names to :class:`Primitive`
+objects: a Python callable (for simulated runs) and the abstract outcomes the
+explorer enumerates instead of calling it (success or failure, and which
+variables each outcome may change, to which values)::
+
+    reg = Registry()
+
+    @reg.register("compute_plan", outcomes=[Outcome("planned", True), Outcome("no_path", False)])
+    def compute_plan(goal): ...
+
+    reg.register("demo_loco::pos", outcomes=[Outcome("read", True, {"pos": 5})])  # exploration only
+
+    binding = reg.resolve(spec)   # every function the spec uses must be bound
+
+Names are ``f`` (any agent's function f) or ``agent::f`` (that agent's f,
+which wins over a plain ``f``); a task-initialised variable is bound as
+``agent::var``. :meth:`Registry.resolve` reports every unbound use, at the
+position of the spec that uses it, in one :class:`BindingError`.
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Iterable, Optional
+
+from ..errors import Pos, RoarError
+from . import ast as a
+
+__all__ = ["Outcome", "Primitive", "Registry", "Binding", "BindingError", "SUCCESS", "FAILURE",
+           "DEFAULT_OUTCOMES"]
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One abstract result of a primitive: its name, whether it succeeds, and what it writes.
+
+    ``writes`` maps variable names (``var`` of the agent that owns the
+    primitive, or ``agent::var``) to the value the outcome leaves there.
+    """
+
+    name: str
+    success: bool = True
+    writes: dict[str, object] = field(default_factory=dict, hash=False)
+
+
+SUCCESS = Outcome("success", True)
+FAILURE = Outcome("failure", False)
+#: outcomes of a primitive registered without any: it may succeed or fail, and writes nothing
+DEFAULT_OUTCOMES = (SUCCESS, FAILURE)
+
+
+@dataclass(frozen=True)
+class Primitive:
+    """A function (or task-initialised variable) of the functional layer."""
+
+    name: str
+    fn: Optional[Callable] = field(default=None, compare=False)
+    outcomes: tuple[Outcome, ...] = DEFAULT_OUTCOMES
+
+    def __call__(self, *args):
+        if self.fn is None:
+            raise RoarError(f"primitive '{self.name}' has no Python implementation "
+                            f"(it was registered for exploration only)")
+        return self.fn(*args)
+
+    def outcome(self, name: str) -> Outcome:
+        for o in self.outcomes:
+            if o.name == name:
+                return o
+        raise KeyError(f"primitive '{self.name}' has no outcome '{name}'")
+
+
+class BindingError(RoarError):
+    """Problems binding a spec to a registry: the first as message, the others as notes; all in ``errors``."""
+
+    def __init__(self, errors: list[RoarError]):
+        self.errors = list(errors)
+        first = self.errors[0]
+        more = len(self.errors) - 1
+        msg = first.message + (f" (and {more} more error{'s' if more > 1 else ''})" if more else "")
+        super().__init__(msg, first.pos, notes=[e.format() for e in self.errors[1:]])
+
+
+@dataclass(frozen=True)
+class Binding:
+    """A spec's functions and task-initialised variables, resolved to primitives.
+
+    ``functions`` is keyed ``agent::f`` (``f`` alone for builtins such as
+    ``now``); ``variables`` is keyed ``agent::var`` and holds only the
+    task-initialised variables that the registry binds (the others are
+    computed by their task's recipes).
+    """
+
+    functions: dict[str, Primitive]
+    variables: dict[str, Primitive]
+
+    def function(self, owner: Optional[str], name: str) -> Primitive:
+        return self.functions[f"{owner}::{name}" if owner else name]
+
+
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(::[A-Za-z_][A-Za-z0-9_]*)?")
+
+
+class Registry:
+    """Names of functions and task-initialised variables -> :class:`Primitive`."""
+
+    def __init__(self, builtins: bool = True):
+        self._prims: dict[str, Primitive] = {}
+        if builtins:
+            start = time.monotonic()
+            self.register("now", lambda: int((time.monotonic() - start) * 1000),
+                          outcomes=[Outcome("now", True)])
+
+    # -- registration --------------------------------------------------------
+    def register(self, name: str, fn: Optional[Callable] = None,
+                 outcomes: Optional[Iterable[Outcome]] = None, *, replace: bool = False):
+        """Bind ``name`` to ``fn`` with its abstract ``outcomes`` (default: success or failure).
+
+        Without ``fn`` the name is bound for exploration only, and the call
+        returns a decorator that supplies the callable::
+
+            @registry.register("distance", outcomes=[...])
+            def distance(p, q): ...
+        """
+        if not isinstance(name, str) or not _NAME.fullmatch(name):
+            raise RoarError(f"cannot register {name!r}: a primitive is named 'f' or 'agent::f'")
+        if name in self._prims and not replace:
+            raise RoarError(f"'{name}' is already registered (pass replace=True to rebind it)")
+        outs = tuple(outcomes) if outcomes is not None else DEFAULT_OUTCOMES
+        if not outs:
+            raise RoarError(f"primitive '{name}' needs at least one outcome")
+        seen = set()
+        for o in outs:
+            if not isinstance(o, Outcome):
+                raise RoarError(f"primitive '{name}': {o!r} is not an Outcome")
+            if o.name in seen:
+                raise RoarError(f"primitive '{name}' has two outcomes named '{o.name}'")
+            seen.add(o.name)
+            for var in o.writes:
+                if not isinstance(var, str) or not _NAME.fullmatch(var):
+                    raise RoarError(f"outcome '{o.name}' of '{name}' writes {var!r}: "
+                                    f"a variable is named 'var' or 'agent::var'")
+        if fn is not None and not callable(fn):
+            raise RoarError(f"cannot register '{name}': {fn!r} is not callable")
+        self._prims[name] = Primitive(name, fn, outs)
+
+        def decorate(f: Callable) -> Callable:
+            self._prims[name] = Primitive(name, f, outs)
+            return f
+
+        return decorate if fn is None else fn
+
+    # -- lookup ----------------------------------------------------------------
+    def __contains__(self, name: str) -> bool:
+        return name in self._prims
+
+    def __getitem__(self, name: str) -> Primitive:
+        return self._prims[name]
+
+    def get(self, name: str) -> Optional[Primitive]:
+        return self._prims.get(name)
+
+    def names(self) -> list[str]:
+        return sorted(self._prims)
+
+    def lookup(self, name: str, owner: Optional[str] = None) -> Optional[Primitive]:
+        """``owner::name`` if registered, else ``name``."""
+        if owner is not None and f"{owner}::{name}" in self._prims:
+            return self._prims[f"{owner}::{name}"]
+        return self._prims.get(name)
+
+    def call(self, name: str, *args, owner: Optional[str] = None):
+        p = self.lookup(name, owner)
+        if p is None:
+            raise RoarError(f"no primitive '{name}' is registered")
+        return p(*args)
+
+    # -- resolution ----------------------------------------------------------
+    def resolve(self, spec: a.Spec) -> Binding:
+        """Bind every function the spec calls; raise :class:`BindingError` listing each unbound use.
+
+        Calls in rules are not bound (the logic layer reasons about them
+        symbolically). Registered callables are checked against the declared
+        number of parameters, and outcome writes against the spec's variables.
+        """
+        errors: list[RoarError] = []
+        functions: dict[str, Primitive] = {}
+        variables: dict[str, Primitive] = {}
+        checked: set[str] = set()
+        for ag in spec.agents:
+            for where, node in _executable(ag):
+                for call in a.calls(node):
+                    if where == "init" and ag.reading_task(node) is not None:
+                        continue
+                    found = spec.resolve_function(ag, call)
+                    if len(found) != 1:
+                        if not found and call.name in a.BUILTINS and call.agent is None:
+                            owner, decl = None, None
+                        else:
+                            continue  # unknown or ambiguous: check_spec reports it
+                    else:
+                        owner, decl = found[0]
+                    key = f"{owner}::{call.name}" if owner else call.name
+                    prim = self.lookup(call.name, owner)
+                    if prim is None:
+                        by = f" (declared by agent '{owner}')" if owner else ""
+                        errors.append(RoarError(
+                            f"function '{call.qualified}'{by} has no binding in the functional-layer "
+                            f"registry; register it as '{call.name}'" + (f" or '{key}'" if owner else ""),
+                            call.pos))
+                        continue
+                    functions[key] = prim
+                    if key not in checked:
+                        checked.add(key)
+                        errors += _check_primitive(spec, prim, owner, decl)
+            for var, _task in ag.task_initialised().items():
+                prim = self._prims.get(f"{ag.name}::{var}")
+                if prim is not None:
+                    variables[f"{ag.name}::{var}"] = prim
+                    errors += _check_writes(spec, prim, ag.name, ag.var(var).pos)
+        if errors:
+            seen, unique = set(), []
+            for e in sorted(errors, key=_ekey):
+                if (e.pos, e.message) not in seen:
+                    seen.add((e.pos, e.message))
+                    unique.append(e)
+            raise BindingError(unique)
+        return Binding(functions, variables)
+
+
+def _ekey(e: RoarError):
+    p = e.pos or Pos("", 0, 0)
+    return (p.file, p.line, p.col, e.message)
+
+
+def _executable(ag: a.Agent):
+    """The parts of an agent that run (and so call the functional layer): not its rules."""
+    for v in ag.vars:
+        if v.init is not None:
+            yield "init", v
+    for t in ag.tasks:
+        for e in t.pre + t.post:
+            yield "cond", e
+        for r in t.recipes:
+            yield "recipe", r
+
+
+def _check_primitive(spec: a.Spec, prim: Primitive, owner: Optional[str],
+                     decl: Optional[a.Function]) -> list[RoarError]:
+    errors: list[RoarError] = []
+    if decl is not None and prim.fn is not None:
+        span = _arity(prim.fn)
+        k = len(decl.params)
+        if span is not None and not (span[0] <= k and (span[1] is None or k <= span[1])):
+            low, high = span
+            takes = str(low) if low == high else f"{low} to {high}"
+            errors.append(RoarError(
+                f"the callable bound to '{prim.name}' takes {takes} argument{'s' if high != 1 else ''}, "
+                f"but agent '{owner}' declares '{decl.name}' with {k}", decl.pos))
+    if owner is not None:
+        errors += _check_writes(spec, prim, owner, decl.pos if decl else None)
+    return errors
+
+
+def _check_writes(spec: a.Spec, prim: Primitive, owner: str, pos: Optional[Pos]) -> list[RoarError]:
+    errors = []
+    for o in prim.outcomes:
+        for var in o.writes:
+            agent, _, name = var.rpartition("::")
+            agent = agent or owner
+            ag = spec.agent(agent)
+            if ag is None or ag.var(name) is None:
+                errors.append(RoarError(
+                    f"outcome '{o.name}' of primitive '{prim.name}' writes '{var}', which is not a "
+                    f"variable of agent '{agent}'", pos))
+    return errors
+
+
+def _arity(fn: Callable) -> Optional[tuple[int, Optional[int]]]:
+    """(fewest, most) positional arguments ``fn`` accepts (most None: any number); None if unknown."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return None
+    low, high = 0, 0
+    for p in sig.parameters.values():
+        if p.kind == p.VAR_POSITIONAL:
+            return (low, None)
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
+            high += 1
+            if p.default is p.empty:
+                low += 1
+    return (low, high)
