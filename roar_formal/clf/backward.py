@@ -30,6 +30,7 @@ class Hyp:
     ty: Node
     mode: str
     used: bool = False
+    name: str = "_"  # the proof variable standing for this hypothesis (for proof terms)
 
 
 class SearchLimit(Exception):
@@ -52,6 +53,12 @@ class Backward:
         self.depth = 0
         self.monad_runs: list[Run] = []
         self.on_monad: Optional[Callable[[Run], None]] = None
+        self.proofs = False  # build monadic proof terms (names for every fact in the monad)
+        self._names = 0
+
+    def fresh_name(self, base: str = "X") -> str:
+        self._names += 1
+        return f"{base}{self._names}"
 
     # -------------------------------------------------------------- helpers
     def _use(self, h: Hyp) -> None:
@@ -76,7 +83,7 @@ class Backward:
                 pass
             elif tt is Exists:
                 p = Param(t.hint)
-                h = Hyp(t.dom, PERS)
+                h = Hyp(t.dom, PERS, name=self.fresh_name(t.hint))
                 added.append(h)
                 go(subst1(t.body, param_term(p)), m)
             elif tt is Bang:
@@ -84,7 +91,7 @@ class Backward:
             elif tt is Aff:
                 go(t.body, AFF if m != PERS else PERS)
             else:
-                h = Hyp(t, m)
+                h = Hyp(t, m, name=self.fresh_name())
                 added.append(h)
 
         go(ty, mode)
@@ -95,9 +102,10 @@ class Backward:
         del self.hyps[len(self.hyps) - len(added):]
 
     # -------------------------------------------------------------- goals
-    def solve(self, goal: Node, floor: int = 0, aff_ok: bool = True) -> Iterator[None]:
-        """Solve ``goal``; hypotheses below index ``floor`` may only be used persistently
-        (or affinely, when ``aff_ok``)."""
+    def solve(self, goal: Node, floor: int = 0, aff_ok: bool = True) -> Iterator[tuple]:
+        """Solve ``goal``, yielding a proof term (see :func:`show_proof`) per solution;
+        hypotheses below index ``floor`` may only be used persistently (or affinely,
+        when ``aff_ok``)."""
         self.depth += 1
         if self.depth > self.max_depth:
             self.depth -= 1
@@ -114,16 +122,21 @@ class Backward:
         elif tg is Pi:
             p = Param(goal.hint)
             added = self._push(goal.dom, PERS)
+            added[0].name = goal.hint if not any(h.name == goal.hint for h in self.hyps[:-1]) else added[0].name
             try:
-                yield from self.solve(subst1(goal.body, param_term(p)), floor, aff_ok)
+                for pf in self.solve(subst1(goal.body, param_term(p)), floor, aff_ok):
+                    yield ("lam", f"\\{added[0].name}.", pf)
             finally:
                 self._pop(added)
         elif tg is Imp:
             added = self._push(goal.dom, goal.mode)
+            binder = {LIN: "\\", PERS: "\\!", AFF: "\\@"}[goal.mode]
             try:
-                for _ in self.solve(goal.body, floor, aff_ok):
+                for pf in self.solve(goal.body, floor, aff_ok):
                     if all(h.used or h.mode != LIN for h in added):
-                        yield
+                        for h in reversed(added):
+                            pf = ("lam", f"{binder}{h.name}.", pf)
+                        yield pf
             finally:
                 self._pop(added)
         elif tg is With:
@@ -134,7 +147,7 @@ class Backward:
                 h = self.hyps[i]
                 if not h.used and h.mode != PERS:
                     self._use(h)
-            yield
+            yield ("top",)
             self._undo(mark, hmark)
         elif tg is Monad:
             yield from self._monad(goal.body, floor)
@@ -143,17 +156,17 @@ class Backward:
 
     def _with(self, goal: With, floor: int, aff_ok: bool) -> Iterator[None]:
         mark, hmark = self.u.mark(), len(self.htrail)
-        for _ in self.solve(goal.left, floor, aff_ok):
+        for pl in self.solve(goal.left, floor, aff_ok):
             left_used = frozenset(id(h) for h in self.htrail[hmark:])
             # redo the right half from the same resources
             saved = self.htrail[hmark:]
             for h in saved:
                 h.used = False
             mark2 = len(self.htrail)
-            for _ in self.solve(goal.right, floor, aff_ok):
+            for pr in self.solve(goal.right, floor, aff_ok):
                 right_used = frozenset(id(h) for h in self.htrail[mark2:])
                 if right_used == left_used:
-                    yield
+                    yield ("pair", pl, pr)
             while len(self.htrail) > mark2:
                 self.htrail.pop().used = False
             for h in saved:
@@ -175,14 +188,14 @@ class Backward:
             mark, hmark = self.u.mark(), len(self.htrail)
             if h.mode != PERS:
                 self._use(h)
-            yield from self._clause(h.ty, goal, floor, aff_ok)
+            yield from self._clause(h.ty, goal, floor, aff_ok, h.name)
             self._undo(mark, hmark)
-        for _name, ty in self.program.clauses.get(fam, ()):
+        for name, ty in self.program.clauses.get(fam, ()):
             mark, hmark = self.u.mark(), len(self.htrail)
-            yield from self._clause(ty, goal, floor, aff_ok)
+            yield from self._clause(ty, goal, floor, aff_ok, name)
             self._undo(mark, hmark)
 
-    def _clause(self, ty: Node, goal: Root, floor: int, aff_ok: bool) -> Iterator[None]:
+    def _clause(self, ty: Node, goal: Root, floor: int, aff_ok: bool, head: str) -> Iterator[tuple]:
         prems: list[tuple[str, Node]] = []
         while True:
             tt = type(ty)
@@ -194,13 +207,14 @@ class Backward:
                 ty = ty.body
             elif tt is With:  # use either half: the clause is (Pi xs. prems -o L) & (... R)
                 for half in (ty.left, ty.right):
-                    yield from self._clause_rest(half, prems, goal, floor, aff_ok)
+                    yield from self._clause_rest(half, prems, goal, floor, aff_ok, head)
                 return
             else:
                 break
-        yield from self._clause_rest(ty, prems, goal, floor, aff_ok)
+        yield from self._clause_rest(ty, prems, goal, floor, aff_ok, head)
 
-    def _clause_rest(self, ty: Node, prems: list, goal: Root, floor: int, aff_ok: bool) -> Iterator[None]:
+    def _clause_rest(self, ty: Node, prems: list, goal: Root, floor: int, aff_ok: bool,
+                     head: str) -> Iterator[tuple]:
         prems = list(prems)
         while True:
             tt = type(ty)
@@ -212,7 +226,7 @@ class Backward:
                 ty = ty.body
             elif tt is With:
                 for half in (ty.left, ty.right):
-                    yield from self._clause_rest(half, prems, goal, floor, aff_ok)
+                    yield from self._clause_rest(half, prems, goal, floor, aff_ok, head)
                 return
             else:
                 break
@@ -222,12 +236,15 @@ class Backward:
         if not self.u.unify(ty, goal):
             self.u.undo(mark)
             return
-        yield from self._premises(prems, len(prems) - 1, floor, aff_ok)
+        marks = {PERS: "!", AFF: "@", LIN: ""}
+        for args in self._premises(prems, len(prems) - 1, floor, aff_ok):
+            # args were solved last premise first; print them in declaration order
+            yield ("app", head, [(marks[m], a) for (m, _), a in zip(prems, reversed(args))])
         self.u.undo(mark)
 
-    def _premises(self, prems, k: int, floor: int, aff_ok: bool) -> Iterator[None]:
+    def _premises(self, prems, k: int, floor: int, aff_ok: bool) -> Iterator[list]:
         if k < 0:
-            yield
+            yield []
             return
         mode, a = prems[k]
         if mode == PERS:
@@ -236,14 +253,16 @@ class Backward:
             sub = self.solve(a, len(self.hyps), True)
         else:
             sub = self.solve(a, floor, aff_ok)
-        for _ in sub:
-            yield from self._premises(prems, k - 1, floor, aff_ok)
+        for pf in sub:
+            for rest in self._premises(prems, k - 1, floor, aff_ok):
+                yield [pf] + rest
 
     # -------------------------------------------------------------- the monad
     def _monad(self, s: Node, floor: int) -> Iterator[None]:
         mark, hmark = self.u.mark(), len(self.htrail)
         ctx = Context()
         ctx.implicit = getattr(self.program, "implicit", None)
+        names = _Names(self) if self.proofs else None
         for i, h in enumerate(self.hyps):
             if h.used:
                 continue
@@ -253,21 +272,31 @@ class Backward:
             if ty.evars:
                 # a hypothesis mentioning unsolved logic variables cannot enter the monad
                 continue
-            load_positive(ctx, ty if h.mode == LIN else (Bang(ty) if h.mode == PERS else Aff(ty)),
-                          self.program.compile_context_rule)
+            added = load_positive(ctx, ty if h.mode == LIN else (Bang(ty) if h.mode == PERS else Aff(ty)),
+                                  self.program.compile_context_rule)
+            if names is not None:
+                for _m, x in added:
+                    names.bind(x, h.name)
             if h.mode != PERS:
                 self._use(h)
         run = Run(self.program.templates, ctx, seed=self.seed, fair=self.fair,
-                  prover=self.program.prover(self))
+                  prover=self.program.prover(self), on_step=names.step if names is not None else None)
         quiescent = run.run(self.monad_depth)
         self.monad_runs.append(run)
         if self.on_monad is not None:
             self.on_monad(run)
         del quiescent
-        yield from self._match_pos(s, ctx)
+        for used in self._match_pos(s, ctx):
+            if names is None:
+                yield ("monad", None, None)
+            else:
+                saved = {k: list(v) for k, v in names.facts.items()}
+                final = [names.name_of(m, t) for m, t in used]
+                names.facts = saved
+                yield ("monad", list(names.lets), final)
         self._undo(mark, hmark)
 
-    def _match_pos(self, s: Node, ctx: Context) -> Iterator[None]:
+    def _match_pos(self, s: Node, ctx: Context) -> Iterator[list]:
         """Match the positive type ``s`` against the final context; linear leftovers fail."""
         items: list[tuple[str, Node]] = []
 
@@ -299,11 +328,13 @@ class Backward:
         pers = list(ctx.pers)
         serve = {LIN: (LIN, AFF), AFF: (AFF,), PERS: ()}
 
-        def go(k: int) -> Iterator[None]:
+        chosen: list = []
+
+        def go(k: int) -> Iterator[list]:
             if k == len(items):
                 if (not any(o[0] == LIN and not o[2] for o in occ) and not ctx.rules_linear_left()
                         and not ctx.inert_linear_left()):
-                    yield
+                    yield list(chosen)
                 return
             m, a = items[k]
             a = deref(a)
@@ -315,7 +346,9 @@ class Backward:
                 mark = self.u.mark()
                 if self.u.unify(a, o[1]):
                     o[2] = True
+                    chosen.append((o[0], o[1], o))
                     yield from go(k + 1)
+                    chosen.pop()
                     o[2] = False
                 self.u.undo(mark)
             for t in pers:
@@ -323,10 +356,13 @@ class Backward:
                     continue
                 mark = self.u.mark()
                 if self.u.unify(a, t):
+                    chosen.append((PERS, t, None))
                     yield from go(k + 1)
+                    chosen.pop()
                 self.u.undo(mark)
 
-        yield from go(0)
+        for used in go(0):
+            yield [(m, t) for m, t, _ in used]
 
 
 def head_families(ty: Node) -> set:
@@ -382,3 +418,71 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
     finally:
         bw._undo(mark, hmark)
         bw.hyps = saved
+
+
+class _Names:
+    """Proof variables for the facts and rules of one monad, and its ``let`` bindings."""
+
+    def __init__(self, bw: Backward):
+        self.bw = bw
+        self.facts: dict = {}  # (mode, fact) -> list of names (a multiset of occurrences)
+        self.rules: dict[int, str] = {}  # context rule uid -> name
+        self.lets: list[tuple[list[str], str, list[str]]] = []
+
+    def bind(self, x, name: str) -> None:
+        if hasattr(x, "uid"):
+            self.rules[x.uid] = name
+        else:
+            self.facts.setdefault(x, []).append(name)
+
+    def _take(self, mode: str, t) -> str:
+        q = self.facts.get(t)
+        if not q:
+            return "_"
+        return q[0] if mode == PERS else q.pop(0)
+
+    def name_of(self, mode: str, t) -> str:
+        return self._take(mode, t)
+
+    def step(self, step, ctx) -> None:
+        args = [self._take(m, t) for m, t in step.consumed]
+        head = self.rules.get(step.ctx_rule, "_") if step.ctx_rule is not None else step.rule
+        pattern = []
+        for act in step.template.head:
+            if act[0] == "fresh":
+                b = step.bindings[act[1]]
+                pattern.append(self.bw.program.show(b))
+        for _mode, x in step.produced:
+            n = self.bw.fresh_name()
+            self.bind(x, n)
+            pattern.append(n)
+        self.lets.append((pattern, head, args))
+
+
+def show_proof(p) -> str:
+    """Render a proof term in Celf's style: ``\\X1. {let {[d1, X2]} = r X1 in X2}``."""
+    kind = p[0]
+    if kind == "lam":
+        return f"{p[1]} {show_proof(p[2])}"
+    if kind == "top":
+        return "<>"
+    if kind == "pair":
+        return f"<{show_proof(p[1])}, {show_proof(p[2])}>"
+    if kind == "app":
+        parts = [p[1]]
+        for mark, a in p[2]:
+            s = show_proof(a)
+            if a[0] != "app" or a[2]:
+                s = f"({s})" if a[0] in ("app", "lam") and (a[0] == "lam" or a[2]) else s
+            parts.append(mark + s)
+        return " ".join(parts)
+    if kind == "monad":
+        if p[1] is None:
+            return "{...}"
+        out = []
+        for pattern, head, args in p[1]:
+            pat = pattern[0] if len(pattern) == 1 else "[" + ", ".join(pattern) + "]"
+            out.append(f"let {{{pat}}} = {' '.join([head] + args)} in ")
+        final = p[2][0] if len(p[2]) == 1 else "[" + ", ".join(p[2]) + "]"
+        return "{" + "".join(out) + final + "}"
+    return repr(p)

@@ -17,14 +17,12 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed", help="Seed of the committed-choice scheduler."),
         trace: bool = typer.Option(False, "--trace", help="Print the context after every forward step."),
         fair: bool = typer.Option(False, "--fair", help="Fair round-robin scheduling instead of random."),
-        proof: bool = typer.Option(False, "--proof", help="Print proof terms (not yet built: refused)."),
+        proof: bool = typer.Option(False, "--proof", help="Print the proof term of each #query solution."),
     ) -> None:
         """Type-check FILE and run its #query, #exec and #trace directives."""
         from .program import Program
         from .query import run_directives, with_big_stack
 
-        if proof:
-            raise RoarError("--proof: proof terms are not built by this version of the engine")
         console = Console(highlight=False)
 
         def emit(line: str) -> None:
@@ -39,7 +37,7 @@ def register(app: typer.Typer) -> None:
 
         def job():
             program = Program.from_file(file)
-            return run_directives(program, seed=seed, emit=emit, trace=trace, fair=fair)
+            return run_directives(program, seed=seed, emit=emit, trace=trace, fair=fair, proofs=proof)
 
         try:
             with_big_stack(job)

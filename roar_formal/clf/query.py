@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 from ..errors import QueryError, RoarError
-from .backward import Backward, SearchLimit
+from .backward import Backward, SearchLimit, show_proof
 from .context import Context
 from .printer import show as _show
 from .program import Program
@@ -59,7 +59,7 @@ class DirectiveResult:
 
 
 def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable[[str], None] = print,
-              fair: bool = False) -> DirectiveResult:
+              fair: bool = False, proofs: bool = False) -> DirectiveResult:
     show = program.show
     head = f"Query ({_b(q.depth)}, {_b(q.expected)}, {_b(q.look)}, {_b(q.attempts)}) {show(q.goal)}."
     emit(head)
@@ -71,11 +71,12 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
         if attempts > 1:
             emit(f"Iteration {attempt + 1}")
         bw = Backward(program, seed=seed + attempt, monad_depth=depth, fair=fair)
+        bw.proofs = proofs
         count = 0
         try:
-            for _ in bw.solve(q.goal):
+            for pf in bw.solve(q.goal):
                 count += 1
-                emit("Solution: _")
+                emit(f"Solution: {show_proof(pf) if proofs else '_'}")
                 answer = {}
                 for name, x in q.logic_vars:
                     v = zonk(x)
@@ -130,12 +131,12 @@ def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[
 
 
 def run_directives(program: Program, seed: int = 0, emit: Callable[[str], None] = print,
-                   trace: bool = False, fair: bool = False) -> list[DirectiveResult]:
+                   trace: bool = False, fair: bool = False, proofs: bool = False) -> list[DirectiveResult]:
     """Run every directive in program order; the first failing one raises."""
     out = []
     for d in program.sig.directives:
         if isinstance(d, QueryDirective):
-            out.append(run_query(program, d, seed, emit, fair))
+            out.append(run_query(program, d, seed, emit, fair, proofs))
         else:
             out.append(run_exec(program, d, seed, emit, trace, fair))
     return out
