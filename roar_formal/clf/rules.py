@@ -200,13 +200,9 @@ def _metas_bound_by(p: Node, acc: set) -> None:
 
 def _check_determined(t: Template, names: list[str], pos: Optional[Pos]) -> None:
     bound: set = set(range(t.nouter))
-    for p in t.premises:
-        if not p.backward:
-            _metas_bound_by(p.pattern, bound)
+    for p in t.premises:  # premises found in the context bind by matching, proved ones by unification
+        _metas_bound_by(p.pattern, bound)
     used: set = set()
-    for p in t.premises:
-        if p.backward:
-            _metas_bound_by(p.pattern, used)
     fresh = {a[1] for a in t.head if a[0] == "fresh"}
     _collect_head(t.head, used)
     missing = sorted(s for s in used - bound - fresh if s >= 0 and s < len(names)

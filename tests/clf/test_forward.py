@@ -180,3 +180,18 @@ def test_successors_backward_premise():
         ["item (s (s (s z)))", "item (s z)", "kept z"],
         ["item (s (s (s z)))", "item z", "kept (s z)"],
     ]
+
+
+def test_a_proved_premise_determines_its_outputs():
+    # C is bound only by proving `add A B C` backwards: that is enough for forward chaining
+    src = """
+nat : type. z : nat. s : nat -> nat.
+add : nat -> nat -> nat -> type.
+add_z : add z N N.
+add_s : add (s M) N (s K) <- add M N K.
+c : nat -> type.
+sum : c A -o c B -o add A B C -> {c C}.
+#exec * c (s z) * c (s (s z)).
+"""
+    (res,) = with_big_stack(run_directives, Program.from_text(src), emit=lambda s: None)
+    assert show_context(res.final) == ["c (s (s (s z)))"]
