@@ -165,7 +165,14 @@ class Context:
             idx[fam].discard(t)
             i = 0
             for a in t.args:
-                idx[(fam, i, a)].discard(t)
+                k = (fam, i, a)
+                b = idx[k]
+                b.discard(t)
+                if not b.items:
+                    # drop the emptied argument bag (a missing key reads as an empty bag):
+                    # arguments are often one-off terms, and the index would otherwise keep
+                    # a bag for every argument ever seen
+                    del idx[k]
                 i += 1
 
     def candidates(self, key) -> Optional[Bag]:

@@ -1,0 +1,172 @@
+"""``roar-verify prove``, ``tca-check`` and ``tca-simulate``: the TCA logic from the command line."""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from ..errors import RoarError
+
+STATUS_STYLE = {"proved": "green", "consistent": "green", "refuted": "yellow", "inconsistent": "red",
+                "unknown": "red"}
+
+
+def _obligations(models: list[Path]):
+    """Every obligation: the axiom set's, then each model's claims (metric ones as model/claim pairs)."""
+    from .model import load_model
+    from .theorems import OBLIGATIONS
+    from .window import claim_obligation
+
+    rows = [(ob.name, ob, None) for ob in OBLIGATIONS]
+    for path in models:
+        model = load_model(path)
+        for claim in model.claims:
+            name = f"{model.name}:{claim.name}"
+            rows.append((name, None, (model, claim)) if claim.metric else (name, claim_obligation(model, claim), None))
+    return rows
+
+
+def _select(rows, names: list[str]):
+    known = {name for name, _, _ in rows}
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise RoarError(f"no obligation named {', '.join(unknown)}; `roar-verify prove --list` lists them")
+    return [r for r in rows if not names or r[0] in names]
+
+
+def _list_table(rows) -> Table:
+    table = Table(title="TCA obligations")
+    for col in ("obligation", "expected", "statement"):
+        table.add_column(col, overflow="fold")
+    for name, ob, metric in rows:
+        if ob is not None:
+            table.add_row(name, ob.expect, ob.statement)
+        else:
+            model, claim = metric
+            table.add_row(name, "proved", f"{claim.says or claim.holds} iff {claim.bound}")
+    return table
+
+
+def _countermodel_table(name: str, cm) -> Table:
+    from .countermodel import RELATION_LABEL, format_number
+
+    title = f"countermodel for {name}" + (f" at t = {format_number(cm.time)}" if cm.time is not None else "")
+    table = Table(title=title, title_justify="left")
+    for col in ("message", "kind", "sent", "start", "end", "ach.start", "ach.end"):
+        table.add_column(col)
+    for r in cm.rows:
+        times = [format_number(r.times[k]) if r.times[k] is not None else "-"
+                 for k in ("sent", "start", "end", "ach_start", "ach_end")]
+        table.add_row(r.label, r.kind, *times)
+    relations = [f"{RELATION_LABEL[rel]}: " + ", ".join(f"({a}, {b})" for a, b in pairs)
+                 for rel, pairs in cm.relations.items() if pairs]
+    table.caption = "; ".join(relations)
+    table.caption_justify = "left"
+    return table
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("prove")
+    def prove_command(
+        theorems: Optional[list[str]] = typer.Argument(None, help="Obligations to run (default: all)."),
+        list_only: bool = typer.Option(False, "--list", help="List the obligations and stop."),
+        model: Optional[list[Path]] = typer.Option(None, "--model", help="Also prove a model's claims (TOML)."),
+        deps: bool = typer.Option(False, "--deps", help="Show the axioms each proof needs (minimal set)."),
+    ) -> None:
+        """Prove the TCA axiom set's theorems (and a model's claims); exit 1 if any result is not the expected one."""
+        from .metric import metric_outcome
+        from .prover import dependencies, prove
+
+        console = Console(highlight=False)
+        rows = _select(_obligations(list(model or [])), list(theorems or []))
+        if list_only:
+            console.print(_list_table(rows))
+            return
+        table = Table(title="TCA proof obligations")
+        for col in ("obligation", "expected", "result", "time (s)"):
+            table.add_column(col, overflow="fold")
+        if deps:
+            table.add_column("uses", overflow="fold")
+        outcomes, failed = [], 0
+        for name, ob, metric in rows:
+            outcome = prove(ob) if ob is not None else metric_outcome(*metric)
+            outcomes.append((name, outcome))
+            ok = outcome.ok
+            failed += not ok
+            style = STATUS_STYLE[outcome.status] if ok else "bold red"
+            cells = [name, outcome.obligation.expect, f"[{style}]{outcome.status}[/]", f"{outcome.seconds:.3f}"]
+            if deps:
+                used = dependencies(ob) if ob is not None and outcome.status == "proved" else None
+                cells.append(", ".join(used) if used else "")
+            table.add_row(*cells)
+        console.print(table)
+        for name, outcome in outcomes:
+            if outcome.countermodel is not None and not outcome.obligation.is_consistency:
+                console.print(_countermodel_table(name, outcome.countermodel))
+            if outcome.reason:
+                console.print(f"{name}: {outcome.reason}", markup=False)
+            for line in outcome.details:
+                console.print(f"  {line}", markup=False)
+        if failed:
+            console.print(f"[bold red]{failed} obligation(s) did not come out as expected[/]")
+            raise typer.Exit(1)
+
+    @app.command("tca-check")
+    def tca_check(
+        trace: Path = typer.Argument(..., help="A JSON Lines trace (engine run, robot run or counterexample)."),
+    ) -> None:
+        """Check a trace's task tree against the TCA axioms and its declared constraints; exit 1 on violations."""
+        from .check import check_trace
+
+        console = Console(highlight=False)
+        report = check_trace(trace)
+        tree = report.tree
+        console.print(f"{trace}: {len(tree.messages)} messages, {len(tree.declared)} declared constraints, "
+                      f"{report.instances} axiom instances ({report.residual} solved by Z3), "
+                      f"{report.seconds:.3f} s", markup=False)
+        if report.ok:
+            console.print("[green]no violations[/]")
+            return
+        table = Table(title=f"{len(report.violations)} violation(s)")
+        for col in ("#", "rule", "from", "messages", "trace lines"):
+            table.add_column(col, overflow="fold")
+        for i, v in enumerate(report.violations, start=1):
+            table.add_row(str(i), v.rule, v.source, ", ".join(dict.fromkeys(v.messages)),
+                          ", ".join(map(str, v.lines[:10])) + (" ..." if len(v.lines) > 10 else ""))
+        console.print(table)
+        for i, v in enumerate(report.violations, start=1):
+            console.print(f"{i}. {v.explanation}", markup=False)
+        raise typer.Exit(1)
+
+    @app.command("tca-simulate")
+    def tca_simulate(
+        model: Path = typer.Argument(..., help="A task-tree model (TOML)."),
+        out: Optional[Path] = typer.Option(None, "--out", help="Write the trace here (default: stdout)."),
+        size: Optional[list[str]] = typer.Option(None, "--size", help="Override a size, e.g. --size arcs=3."),
+        seed: int = typer.Option(0, "--seed", help="Seed for the durations drawn within bounds."),
+        no_achievement: bool = typer.Option(False, "--no-achievement", help="Leave goals' achievement out."),
+    ) -> None:
+        """Run a model under TCA's eager dispatching and write the run as a JSON Lines trace."""
+        from .model import load_model
+        from .schedule import sample_timing, simulate
+        from .trace_events import dumps
+        from .unroll import unroll
+
+        loaded = load_model(model)
+        sizes = {}
+        for item in size or []:
+            key, _, value = item.partition("=")
+            if key not in loaded.sizes or not value.isdigit() or int(value) < 1:
+                raise RoarError(f"--size {item}: expected NAME=N with NAME one of {', '.join(loaded.sizes)}")
+            sizes[key] = int(value)
+        inst = unroll(loaded, sizes)
+        text = dumps(simulate(inst, sample_timing(inst, random.Random(seed)), achievement=not no_achievement))
+        if out is None:
+            typer.echo(text, nl=False)
+        else:
+            out.write_text(text, encoding="utf-8")
