@@ -162,48 +162,10 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
                 return
             yield from _backward(0)
             return
-        # choose the most selective remaining premise
-        best = None
-        best_bag = None
-        best_n = -1
-        for i, p in enumerate(prems):
-            if done[i] or p.backward:
-                continue
-            pat = p.pattern
-            fam = pat.head
-            bag = None
-            bag_n = 0
-            j = -1
-            for a in pat.args:
-                j += 1
-                # ground_value(a, b), inlined
-                if not a.metas:
-                    if a.maxb:
-                        continue
-                    v = a
-                elif type(a) is Root and not a.args and type(a.head) is Meta:
-                    v = b[a.head.index]
-                    if v is None:
-                        continue
-                else:
-                    continue
-                bag2 = index.get((fam, j, v))
-                if bag2 is None:
-                    return
-                n2 = len(bag2.items)
-                if not n2:
-                    return
-                if bag is None or n2 < bag_n:
-                    bag, bag_n = bag2, n2
-            if bag is None:
-                bag = index.get(fam)
-                if bag is None:
-                    return
-                bag_n = len(bag.items)
-                if not bag_n:
-                    return
-            if best is None or bag_n < best_n:
-                best, best_bag, best_n = i, bag, bag_n
+        sel = _most_selective(prems, done, b, index)
+        if sel is None:
+            return
+        best, best_bag = sel
         p = prems[best]
         done[best] = True
         pat = p.pattern
@@ -251,6 +213,108 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
 
     return go(0)
 
+
+
+def _most_selective(prems, done: list, b: list, index: dict):
+    """The remaining context premise with the fewest candidates, and its candidate bag;
+    None when some premise has no candidate at all (no match is possible)."""
+    best = None
+    best_bag = None
+    best_n = -1
+    for i, p in enumerate(prems):
+        if done[i] or p.backward:
+            continue
+        pat = p.pattern
+        fam = pat.head
+        bag = None
+        bag_n = 0
+        j = -1
+        for a in pat.args:
+            j += 1
+            # ground_value(a, b), inlined
+            if not a.metas:
+                if a.maxb:
+                    continue
+                v = a
+            elif type(a) is Root and not a.args and type(a.head) is Meta:
+                v = b[a.head.index]
+                if v is None:
+                    continue
+            else:
+                continue
+            bag2 = index.get((fam, j, v))
+            if bag2 is None:
+                return None
+            n2 = len(bag2.items)
+            if not n2:
+                return None
+            if bag is None or n2 < bag_n:
+                bag, bag_n = bag2, n2
+        if bag is None:
+            bag = index.get(fam)
+            if bag is None:
+                return None
+            bag_n = len(bag.items)
+            if not bag_n:
+                return None
+        if best is None or bag_n < best_n:
+            best, best_bag, best_n = i, bag, bag_n
+    return best, best_bag
+
+
+def first_match(ctx: Context, tpl: Template, b: list, start: int) -> Optional[list]:
+    """The first match of a template without proved premises (the committed-choice hot
+    path: plain recursion, no generator chain). Same search order as :func:`find_matches`."""
+    prems = tpl.premises
+    n = len(prems)
+    done = [False] * n
+    used: dict = {}
+    consumed: list = []
+    trail: list = []
+    index = ctx.index
+    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
+
+    def go(k: int) -> bool:
+        if k == n:
+            return True
+        sel = _most_selective(prems, done, b, index)
+        if sel is None:
+            return False
+        best, bag = sel
+        p = prems[best]
+        done[best] = True
+        pat = p.pattern
+        for t in (bag.rotated(start) if start >= 0 else bag.items):
+            for mode in _SERVE[p.mode]:
+                if mode == LIN:
+                    have = lin.get(t, 0)
+                elif mode == AFF:
+                    have = aff.get(t, 0)
+                else:
+                    have = 1 if t in pers else 0
+                if not have:
+                    continue
+                if mode != PERS:
+                    key = (mode, t)
+                    if used.get(key, 0) >= have:
+                        continue
+                mark = len(trail)
+                if match(pat, t, b, trail):
+                    if mode != PERS:
+                        used[key] = used.get(key, 0) + 1
+                    consumed.append((mode, t))
+                    if go(k + 1):
+                        return True
+                    consumed.pop()
+                    if mode != PERS:
+                        used[key] -= 1
+                while len(trail) > mark:
+                    b[trail.pop()] = None
+                break
+        done[best] = False
+        return False
+
+    return consumed if go(0) else None
 
 # ------------------------------------------------------------------ firing
 
@@ -349,13 +413,22 @@ class Run:
                 if not tpl.forward:
                     continue
                 b = list(item.env)
-                for consumed in find_matches(ctx, tpl, b, start, self.prover):
+                consumed = self._first(tpl, b, start)
+                if consumed is not None:
                     return fire(ctx, tpl, b, consumed, item)
             return None
         b = [None] * item.nslots
-        for consumed in find_matches(ctx, item, b, start, self.prover):
+        consumed = self._first(item, b, start)
+        if consumed is not None:
             return fire(ctx, item, b, consumed, None)
         return None
+
+    def _first(self, tpl: Template, b: list, start: int) -> Optional[list]:
+        if tpl.backward_premises:
+            for consumed in find_matches(self.ctx, tpl, b, start, self.prover):
+                return consumed
+            return None
+        return first_match(self.ctx, tpl, b, start)
 
     def run(self, max_steps: Optional[int] = None) -> bool:
         """Run; True if quiescent at the end, False if stopped by the bound."""

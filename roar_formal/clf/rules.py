@@ -44,6 +44,11 @@ class Template:
     slot_names: list[str] = field(default_factory=list)
     source: Optional[Node] = None  # the type it was compiled from (slots as Metas)
 
+    @property
+    def backward_premises(self) -> bool:
+        """Does some premise need proof search (not just a lookup in the context)?"""
+        return any(p.backward for p in self.premises)
+
 
 def _conv(t: Node, env: list[int], lam_depth: int = 0) -> Node:
     """Turn binder references of a type's term into slot references."""
