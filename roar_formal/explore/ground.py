@@ -319,7 +319,11 @@ class GroundExplorer:
             with np.errstate(over="ignore"):
                 words = [f_words[w][src_local] + self.word_delta[w][inst] for w in range(self.nwords)]
             mix = self._mix(words)
-            pos = np.minimum(np.searchsorted(vis_mix, mix), len(vis_mix) - 1)
+            # search in sorted order: sequential access into the big visited array
+            so = np.argsort(mix)
+            pos = np.empty(len(mix), dtype=np.int64)
+            pos[so] = np.searchsorted(vis_mix, mix[so])
+            np.minimum(pos, len(vis_mix) - 1, out=pos)
             cand = vis_id[pos]
             found = vis_mix[pos] == mix
             for w in range(self.nwords):
@@ -381,7 +385,8 @@ class GroundExplorer:
             e_dst.append(dst.astype(np.int32))
             e_inst.append(inst)
             n_edges += len(dst)
-            f_ids, f_rows, f_words = next_ids, new_rows, new_words
+            # column-major: the enabledness tests read whole columns
+            f_ids, f_rows, f_words = next_ids, np.asfortranarray(new_rows), new_words
             level += 1
             if self.on_progress is not None:
                 el = time.perf_counter() - t0
