@@ -24,7 +24,6 @@ the two, and an independent plain enumerator, on small instances).
 
 from __future__ import annotations
 
-import fnmatch
 import time
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -37,7 +36,7 @@ from ..clf.program import Program
 from ..clf.rules import AFF, LIN, PERS
 from .graph import Interner, StateGraph
 from .search import Budget, rss_mb
-from .system import Options
+from .system import Options, is_progress, step_group
 
 
 class NotGround(Exception):
@@ -119,7 +118,8 @@ class GroundModel:
                     c = self._col(mode, t)
                     produce[c] = produce.get(c, 0) + 1
                 self.instances.append(Instance(choice.rule, consume, tuple(sorted(set(require))), produce,
-                                               self._group(choice), self._progress(choice.rule)))
+                                               step_group(self.program, self.options, choice),
+                                               is_progress(self.options, choice.rule)))
                 if len(self.facts) > max_facts:
                     raise NotGround(f"more than {max_facts} distinct facts: the state space is too large "
                                     "or infinite for the ground backend")
@@ -130,20 +130,6 @@ class GroundModel:
             for c in inst.produce:
                 if self.facts[c][0] == PERS:
                     raise NotGround(f"rule '{inst.rule}' adds persistent facts at run time")
-
-    def _progress(self, rule: str) -> bool:
-        return any(fnmatch.fnmatchcase(rule, pat) for pat in self.options.progress_rules)
-
-    def _group(self, choice) -> str:
-        mode = self.options.fairness
-        if mode == "none":
-            return "*"
-        if mode == "rule":
-            return choice.rule
-        for m, fact in choice.consumed:
-            if m != PERS and fact.args:
-                return self.program.show(fact.args[0])
-        return choice.rule
 
     def describe_row(self, row: np.ndarray) -> list[str]:
         lines = []

@@ -28,6 +28,7 @@ class Options:
     progress_rules: tuple[str, ...] = ()  # rule names (globs) whose steps are progress events
     fairness: str = "first-argument"  # 'first-argument' | 'rule' | 'none'
     canonical: bool = True  # identify states up to renaming of fresh names
+    reduction: bool = False  # partial-order reduction (stubborn sets, see reduction.py); deadlock only
 
 
 @dataclass
@@ -46,6 +47,7 @@ class ClfSystem:
         self.program = program
         self.start = start
         self.options = options or Options()
+        self.reducer = None
 
     def initial(self) -> Context:
         return self.start
@@ -54,26 +56,35 @@ class ClfSystem:
         return canonical_key(state) if self.options.canonical else _plain_key(state)
 
     def successors(self, state: Context) -> list[Successor]:
-        out = []
-        for choice in self.program.steps(state):
-            nxt, step = self.program.successor(state, choice)
-            out.append(Successor(choice.rule, self._group(choice), self._progress(choice.rule), nxt, step))
-        return out
+        return [self._successor(state, choice) for choice in self.program.steps(state)]
+
+    def _successor(self, state: Context, choice) -> Successor:
+        nxt, step = self.program.successor(state, choice)
+        return Successor(choice.rule, self._group(choice), self._progress(choice.rule), nxt, step)
+
+    def reduced_successors(self, state: Context):
+        """Successors by a stubborn subset of the enabled steps, and a function giving the
+        others (None when the subset is every enabled step). The explorer applies the
+        cycle proviso; without ``options.reduction`` this is full expansion."""
+        choices = self.program.steps(state)
+        pick = None
+        if self.options.reduction:
+            if self.reducer is None:
+                from .reduction import Reducer
+                self.reducer = Reducer(self.program.templates)
+            pick = self.reducer.choose(state, choices)
+        if pick is None:
+            return [self._successor(state, c) for c in choices], None
+        chosen = set(pick)
+        rest = [c for i, c in enumerate(choices) if i not in chosen]
+        return ([self._successor(state, choices[i]) for i in pick],
+                lambda: [self._successor(state, c) for c in rest])
 
     def _progress(self, rule: str) -> bool:
-        return any(fnmatch.fnmatchcase(rule, pat) for pat in self.options.progress_rules)
+        return is_progress(self.options, rule)
 
     def _group(self, choice) -> str:
-        mode = self.options.fairness
-        if mode == "none":
-            return "*"
-        if mode == "rule":
-            return choice.rule
-        # the process is named by the first argument of the first consumed linear fact
-        for m, fact in choice.consumed:
-            if m != PERS and fact.args:
-                return self.program.show(fact.args[0])
-        return choice.rule
+        return step_group(self.program, self.options, choice)
 
     def describe(self, state: Context) -> list[str]:
         return show_context(state)
@@ -90,6 +101,25 @@ class ClfSystem:
 
 def _mode(m: str) -> str:
     return {"1": "", "@": "@", "!": "!"}[m]
+
+
+def is_progress(options: Options, rule: str) -> bool:
+    """Is a step of ``rule`` a progress event (the property file's globs)?"""
+    return any(fnmatch.fnmatchcase(rule, pat) for pat in options.progress_rules)
+
+
+def step_group(program: Program, options: Options, choice) -> str:
+    """The fairness group (process) a step belongs to."""
+    mode = options.fairness
+    if mode == "none":
+        return "*"
+    if mode == "rule":
+        return choice.rule
+    # the process is named by the first argument of the first consumed linear fact
+    for m, fact in choice.consumed:
+        if m != PERS and fact.args:
+            return program.show(fact.args[0])
+    return choice.rule
 
 
 def _plain_key(ctx: Context):
