@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import gc
 import random
 from dataclasses import dataclass, field
 from typing import Callable, Iterator, Optional
@@ -431,7 +432,21 @@ class Run:
         return first_match(self.ctx, tpl, b, start)
 
     def run(self, max_steps: Optional[int] = None) -> bool:
-        """Run; True if quiescent at the end, False if stopped by the bound."""
+        """Run; True if quiescent at the end, False if stopped by the bound.
+
+        The cyclic garbage collector is paused meanwhile: a step makes no reference
+        cycles (reference counting frees what it drops), and in a large context the
+        collector's scans of the long-lived hash-consed terms cost about a fifth of
+        the time (benchmark B2)."""
+        was_enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return self._run(max_steps)
+        finally:
+            if was_enabled:
+                gc.enable()
+
+    def _run(self, max_steps: Optional[int]) -> bool:
         agenda = self.agenda
         ctx = self.ctx
         while max_steps is None or self.steps < max_steps:
