@@ -45,6 +45,7 @@ class Job:
     backend: str = "auto"
     search: str = "bfs"
     canonical: bool = True
+    reduction: bool = False  # partial-order reduction (general backend, deadlock only)
 
 
 def _load_toml(path: Path) -> dict:
@@ -124,7 +125,8 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
 def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
-    _expect_keys(d, {"name", "model", "start", "properties", "backend", "search", "canonical", "bounds", "expect"},
+    _expect_keys(d, {"name", "model", "start", "properties", "backend", "search", "canonical", "reduction", "bounds",
+                     "expect"},
                  "a job file", path)
     if "model" not in d:
         raise RoarError("a job needs 'model = \"path/to/model.clf\"'", Pos(str(path), 1, 1))
@@ -151,6 +153,8 @@ def load_job(path: str | Path) -> Job:
             setattr(job, key, v)
     if "canonical" in d:
         job.canonical = _typed(d, "canonical", bool, path, "a job file")
+    if "reduction" in d:
+        job.reduction = _typed(d, "reduction", bool, path, "a job file")
     if "bounds" in d:
         b = _typed(d, "bounds", dict, path, "a job file")
         _expect_keys(b, {"max_states", "max_seconds", "max_memory_mb"}, "[bounds]", path)

@@ -51,6 +51,12 @@ class Explorer:
         self.graph.describe_edge = lambda e: system.describe_step(self.steps[e])
         self.started = time.perf_counter()
         self.elapsed = 0.0
+        # partial-order reduction (the system's ``options.reduction``): expansions that used a
+        # stubborn subset, and those the cycle proviso turned back into full ones
+        self.reduce = bool(getattr(getattr(system, "options", None), "reduction", False)) and hasattr(
+            system, "reduced_successors")
+        self.reduced_expansions = 0
+        self.proviso_expansions = 0
 
     def _add(self, state, parent: int, edge: int, depth: int) -> int:
         sid = self.graph.add_state(parent, edge, depth)
@@ -78,8 +84,12 @@ class Explorer:
             s = pop()
             state = self.states[s]
             depth = g.depth[s] + 1
-            for succ in system.successors(state):
-                k = system.key(succ.state)
+            if self.reduce:
+                succs, keys = self._expand_reduced(state)
+            else:
+                succs = system.successors(state)
+                keys = [system.key(x.state) for x in succs]
+            for succ, k in zip(succs, keys):
                 t = self.ids.get(k)
                 new = t is None
                 if new:
@@ -99,8 +109,29 @@ class Explorer:
         self.elapsed += time.perf_counter() - t0
         return g
 
+    def _expand_reduced(self, state) -> tuple[list, list]:
+        """A stubborn subset of the successors, or all of them under the cycle proviso: when
+        a reduced expansion reaches a state already visited (expanded or in the frontier),
+        every step is expanded, so no cycle of the graph is closed by reduced expansions
+        alone (each edge of a reduced expansion leads to a state discovered by it)."""
+        system = self.system
+        succs, rest = system.reduced_successors(state)
+        keys = [system.key(x.state) for x in succs]
+        if rest is None:
+            return succs, keys
+        if any(k in self.ids for k in keys):
+            self.proviso_expansions += 1
+            more = rest()
+            return succs + more, keys + [system.key(x.state) for x in more]
+        self.reduced_expansions += 1
+        return succs, keys
+
     def stats(self) -> dict:
         g = self.graph
         el = self.elapsed + 1e-9
-        return {"states": g.n_states, "transitions": g.n_edges, "frontier": len(self.frontier),
-                "seconds": el, "states_per_s": g.n_states / el, "memory_mb": rss_mb()}
+        out = {"states": g.n_states, "transitions": g.n_edges, "frontier": len(self.frontier),
+               "seconds": el, "states_per_s": g.n_states / el, "memory_mb": rss_mb()}
+        if self.reduce:
+            out["reduced_expansions"] = self.reduced_expansions
+            out["proviso_expansions"] = self.proviso_expansions
+        return out

@@ -1,0 +1,120 @@
+"""B4: partial-order reduction (stubborn sets) on the general backend.
+
+For each model with a general-backend start state: the dining philosophers
+(N = 4, 5, variants dl/ok/ll), every ``#exec`` start of ``models/clf/*.clf``
+whose state space is finite (explored completely within a small budget), and
+k independent three-step processes: states, transitions and search time with
+and without reduction, the reduction factor (states without / states with)
+and whether the deadlock verdict agrees. The reduction keeps every quiescent
+state (see ``roar_formal/explore/reduction.py``); the cycle proviso of the
+breadth-first search limits it on models whose processes cycle.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import statistics
+import time
+from pathlib import Path
+
+NAME = "b4"
+TITLE = "B4 partial-order reduction (general backend): states with and without"
+ROOT = Path(__file__).resolve().parents[1]
+PROBE = 20_000  # a start state whose space exceeds this is left out (not finite enough for a benchmark)
+
+
+def _gen():
+    spec = importlib.util.spec_from_file_location("phil_gen", ROOT / "models/philosophers/generate.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def independent(k: int) -> str:
+    return ("pid : type.\n" + "".join(f"q{i} : pid.\n" for i in range(k))
+            + "a : pid -> type. b : pid -> type. d : pid -> type. e : pid -> type.\n"
+            + "ab : a P -o {b P}.\nbd : b P -o {d P}.\nde : d P -o {e P}.\n"
+            + "#exec * " + " * ".join(f"a q{i}" for i in range(k)) + ".\n")
+
+
+def _explore(program, start, reduction: bool, budget):
+    from roar_formal.explore.properties import check_deadlock
+    from roar_formal.explore.search import Explorer
+    from roar_formal.explore.system import ClfSystem, Options
+
+    ex = Explorer(ClfSystem(program, start, Options(reduction=reduction)))
+    t0 = time.perf_counter()
+    g = ex.run(budget)
+    dt = time.perf_counter() - t0
+    return g, dt, check_deadlock(g).status
+
+
+def _cases(quick: bool):
+    from roar_formal.clf.program import Program
+    from roar_formal.clf.signature import ExecDirective
+
+    gen = _gen()
+    ns = (4,) if quick else (4, 5)
+    for variant in ("dl", "ok", "ll"):
+        for n in ns:
+            p = Program.from_text(gen.program(variant, n))
+            yield f"philosophers {variant} N={n}", p, p.start_context(p.sig.directives[-1].start)
+    for k in ((4, 6) if quick else (4, 5, 6)):
+        p = Program.from_text(independent(k))
+        yield f"{k} independent processes", p, p.start_context(p.sig.directives[-1].start)
+    for f in sorted((ROOT / "models/clf").glob("*.clf")):
+        try:
+            p = Program.from_file(f)
+        except Exception:  # noqa: BLE001 - a model the engine refuses is not benchmarked
+            continue
+        execs = [d for d in p.sig.directives if isinstance(d, ExecDirective)]
+        for i, d in enumerate(execs, 1):
+            try:
+                yield f"clf/{f.name} #exec {i}", p, p.start_context(d.start)
+            except Exception:  # noqa: BLE001
+                continue
+
+
+def _run(repeats: int, quick: bool) -> dict:
+    from roar_formal.explore.search import Budget
+
+    rows, data = [], []
+    probe = Budget(max_states=PROBE, max_seconds=5 if quick else 10)
+    for name, program, start in _cases(quick):
+        g_full, _, _ = _explore(program, start, False, probe)
+        if not g_full.complete:
+            continue  # infinite or too large: not part of the benchmark
+        t_full, t_red = [], []
+        for _ in range(max(1, repeats)):
+            g_full, dt, st_full = _explore(program, start, False, Budget())
+            t_full.append(dt)
+            g_red, dt, st_red = _explore(program, start, True, Budget())
+            t_red.append(dt)
+        rec = {"model": name, "states": g_full.n_states, "transitions": g_full.n_edges,
+               "seconds": statistics.median(t_full), "states_reduced": g_red.n_states,
+               "transitions_reduced": g_red.n_edges, "seconds_reduced": statistics.median(t_red),
+               "factor": g_full.n_states / max(1, g_red.n_states), "deadlock": st_full,
+               "deadlock_reduced": st_red, "agree": st_full == st_red}
+        data.append(rec)
+        rows.append([name, f"{rec['states']:,}", f"{rec['transitions']:,}", f"{rec['seconds']:.3f}",
+                     f"{rec['states_reduced']:,}", f"{rec['transitions_reduced']:,}",
+                     f"{rec['seconds_reduced']:.3f}", f"{rec['factor']:.2f}",
+                     rec["deadlock"] + ("" if rec["agree"] else " != " + rec["deadlock_reduced"])])
+    cols = ["model", "states", "transitions", "s", "states (POR)", "transitions (POR)", "s (POR)",
+            "factor", "deadlock"]
+    return {"results": data, "tables": [{"title": TITLE, "columns": cols, "rows": rows}]}
+
+
+def run(repeats: int = 1, quick: bool = False) -> dict:
+    from roar_formal.clf.query import with_big_stack
+
+    return with_big_stack(_run, repeats, quick)
+
+
+if __name__ == "__main__":
+    out = run(1, quick=False)
+    for t in out["tables"]:
+        print(t["title"])
+        print(" | ".join(t["columns"]))
+        for r in t["rows"]:
+            print(" | ".join(r))

@@ -1,0 +1,252 @@
+"""Partial-order reduction (stubborn sets) on the general backend: same verdicts, fewer states."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from roar_formal.clf.program import Program
+from roar_formal.clf.query import with_big_stack
+from roar_formal.explore.check import run_job, save_counterexample
+from roar_formal.explore.jobs import load_job
+from roar_formal.explore.properties import check_deadlock
+from roar_formal.explore.search import Budget, Explorer
+from roar_formal.explore.system import ClfSystem, Options
+from roar_formal.trace.replay import replay
+
+ROOT = Path(__file__).resolve().parents[2]
+
+_spec = importlib.util.spec_from_file_location("phil_gen", ROOT / "models/philosophers/generate.py")
+gen = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(gen)
+
+
+def explore(src: str, reduction: bool, budget: Budget = Budget(), **opts):
+    p = Program.from_text(src)
+    system = ClfSystem(p, p.start_context(p.sig.directives[-1].start), Options(reduction=reduction, **opts))
+    ex = Explorer(system)
+    g = with_big_stack(ex.run, budget)
+    return ex, g
+
+
+def quiescent_keys(ex: Explorer, g) -> set:
+    out = g.out_degree()
+    return {ex.system.key(ex.states[s]) for s in range(g.n_states) if g.expanded[s] and out[s] == 0}
+
+
+def same_deadlocks(src: str, budget: Budget = Budget()):
+    """Explore with and without reduction; the reachable quiescent states must be the same."""
+    full_ex, full = explore(src, False, budget)
+    red_ex, red = explore(src, True, budget)
+    if not (full.complete and red.complete):
+        return None
+    assert red.n_states <= full.n_states
+    assert quiescent_keys(red_ex, red) == quiescent_keys(full_ex, full)
+    a, b = check_deadlock(full), check_deadlock(red)
+    assert a.status == b.status
+    for s in range(red.n_states):  # every state of the reduced graph is a state of the full one
+        assert red_ex.system.key(red_ex.states[s]) in full_ex.ids
+    return full, red, red_ex
+
+
+# ------------------------------------------------------------ philosophers
+
+
+@pytest.mark.parametrize("variant", ["dl", "ok", "ll"])
+@pytest.mark.parametrize("n", [3, 4])
+def test_philosophers_deadlock_verdicts_are_unchanged(variant, n):
+    got = same_deadlocks(gen.program(variant, n))
+    assert got is not None
+    full, red, _ = got
+    assert red.n_edges < full.n_edges  # local steps (eat) are taken alone somewhere
+
+
+def _job(tmp: Path, model: Path, reduction: bool, check: str = '["deadlock", "livelock"]') -> Path:
+    props = tmp / "props.toml"
+    props.write_text(f'check = {check}\n[livelock]\nprogress = ["eat"]\nfairness = "first-argument"\n',
+                     encoding="utf-8")
+    job = tmp / f"job_{model.stem}_{reduction}.toml"
+    job.write_text(f'model = "{model}"\nproperties = "{props}"\nbackend = "general"\n'
+                   f'reduction = {str(reduction).lower()}\n', encoding="utf-8")
+    return job
+
+
+@pytest.mark.parametrize("variant", ["dl", "ok", "ll"])
+@pytest.mark.parametrize("n", [3, 4])
+def test_philosophers_job_verdicts_with_and_without_reduction(tmp_path, variant, n):
+    model = tmp_path / f"{variant}{n}.clf"
+    model.write_text(gen.program(variant, n), encoding="utf-8")
+    off = run_job(load_job(_job(tmp_path, model, False)))
+    on = run_job(load_job(_job(tmp_path, model, True)))
+    assert on.backend == off.backend == "general"
+    assert on.reduction == "off for livelock"  # fairness needs the full graph
+    for p in ("deadlock", "livelock"):
+        assert on.verdicts[p].status == off.verdicts[p].status
+        assert "reduction off for livelock" in on.verdicts[p].message
+    # deadlock alone: reduction on, same verdict
+    sub = tmp_path / "dl_only"
+    sub.mkdir()
+    on_dl = run_job(load_job(_job(sub, model, True, '["deadlock"]')))
+    assert on_dl.reduction == "on" and on_dl.verdicts["deadlock"].details["reduction"] == "on"
+    assert on_dl.verdicts["deadlock"].status == off.verdicts["deadlock"].status
+    assert on_dl.graph.n_states <= off.graph.n_states
+
+
+def test_ground_backend_ignores_reduction(tmp_path):
+    model = tmp_path / "dl3.clf"
+    model.write_text(gen.program("dl", 3), encoding="utf-8")
+    job = _job(tmp_path, model, True, '["deadlock"]')
+    job.write_text(job.read_text().replace('backend = "general"', 'backend = "auto"'))
+    res = run_job(load_job(job))
+    assert res.backend == "ground" and res.reduction == "not used by the ground backend"
+    assert res.verdicts["deadlock"].violated
+
+
+def test_reduction_key_must_be_a_boolean(tmp_path):
+    from roar_formal.errors import RoarError
+
+    model = tmp_path / "dl3.clf"
+    model.write_text(gen.program("dl", 3), encoding="utf-8")
+    job = _job(tmp_path, model, True)
+    job.write_text(job.read_text().replace("reduction = true", 'reduction = "yes"'))
+    with pytest.raises(RoarError, match="reduction"):
+        load_job(job)
+    assert load_job(_job(tmp_path, model, False)).reduction is False
+
+
+# ------------------------------------------------------------ independent processes
+
+
+def independent(k: int, stuck: bool = False) -> str:
+    src = ("pid : type.\n" + "".join(f"q{i} : pid.\n" for i in range(k))
+           + "a : pid -> type. b : pid -> type. d : pid -> type. e : pid -> type.\n"
+           + "ab : a P -o {b P}.\nbd : b P -o {d P}.\nde : d P -o {e P}.\n")
+    if stuck:
+        src += "fin : e q0 * e q1 -o {1}.\n"
+    return src + "#exec * " + " * ".join(f"a q{i}" for i in range(k)) + ".\n"
+
+
+def test_independent_processes_give_a_strictly_smaller_graph():
+    full, red, ex = same_deadlocks(independent(4))
+    assert full.n_states == 4 ** 4
+    assert red.n_states == 3 * 4 + 1  # one interleaving
+    assert ex.reduced_expansions > 0
+    full, red, _ = same_deadlocks(independent(3, stuck=True))
+    assert red.n_states < full.n_states
+
+
+# ------------------------------------------------------------ fresh names
+
+CHANNELS = """
+pid : type. p0 : pid. p1 : pid. p2 : pid.
+chan : type.
+idle : pid -> type.
+wait : pid -> chan -> type.
+msg : chan -> type.
+got : pid -> type.
+open : idle P -o {Exists c:chan. wait P c * msg c}.
+recv : wait P C * msg C -o {got P}.
+#exec * idle p0 * idle p1 * idle p2.
+"""
+
+SHARED = """
+pid : type. p0 : pid. p1 : pid.
+tok : type.
+idle : pid -> type.
+hold : pid -> tok -> type.
+pool : tok -> type.
+made : type.
+mk : made -o {Exists t:tok. pool t}.
+take : idle P * pool T -o {hold P T}.
+give : hold P T -o {pool T}.
+#exec * idle p0 * idle p1 * made * made.
+"""
+
+SHARED_STUCK = SHARED.replace("give : hold P T -o {pool T}.", "give : hold p0 T -o {pool T}.")
+
+
+@pytest.mark.parametrize("src", [CHANNELS, SHARED, SHARED_STUCK], ids=["channels", "shared", "shared-stuck"])
+def test_programs_with_fresh_names(src):
+    got = same_deadlocks(src, Budget(max_states=5000))
+    assert got is not None
+
+
+def test_channels_reduce():
+    full, red, _ = same_deadlocks(CHANNELS)
+    assert red.n_states < full.n_states
+
+
+# ------------------------------------------------------------ random programs
+
+
+@st.composite
+def programs(draw):
+    names = ["k0", "k1"]
+    fams = ["p", "q", "r", "u"]
+    atom = st.tuples(st.sampled_from(fams), st.sampled_from(names + ["X", "Y"]))
+    rules = []
+    for i in range(draw(st.integers(1, 5))):
+        prem = draw(st.lists(atom, min_size=1, max_size=3))
+        bound = {a for _, a in prem if a in ("X", "Y")}
+        concl = draw(st.lists(atom, max_size=2))
+        concl = [(f, a if a not in ("X", "Y") or a in bound else "k1") for f, a in concl]
+        bang = draw(st.booleans()) and len(prem) > 1
+        lhs = " * ".join(("!" if bang and j == 0 else "") + f"{f} {a}" for j, (f, a) in enumerate(prem))
+        rhs = " * ".join(f"{f} {a}" for f, a in concl) or "1"
+        if draw(st.booleans()) and concl:  # a fresh name somewhere in the head
+            f, _ = concl[0]
+            rhs = f"Exists n:k. {f} n" + (" * " + " * ".join(f"{g} {a}" for g, a in concl[1:]) if concl[1:] else "")
+        rules.append(f"r{i} : {lhs} -o {{{rhs}}}.")
+    start = draw(st.lists(st.tuples(st.sampled_from(fams), st.sampled_from(names)), min_size=1, max_size=5))
+    pers = draw(st.lists(st.tuples(st.sampled_from(fams), st.sampled_from(names)), max_size=2))
+    return ("k : type. k0 : k. k1 : k.\n" + "".join(f"{f} : k -> type.\n" for f in fams)
+            + "\n".join(rules) + "\n#exec * " + " * ".join([f"{f} {a}" for f, a in start]
+                                                            + [f"!{f} {a}" for f, a in pers]) + ".\n")
+
+
+@settings(max_examples=30, deadline=None)
+@given(programs())
+def test_random_programs_keep_their_deadlocks(src):
+    same_deadlocks(src, Budget(max_states=400, max_seconds=2))
+
+
+# ------------------------------------------------------------ counterexamples replay
+
+
+def test_reduced_counterexamples_replay(tmp_path):
+    # (models without fresh names: the replayer matches produced facts by their printed form)
+    for name, src in (("indep", independent(3, stuck=True)), ("dl4", gen.program("dl", 4))):
+        model = tmp_path / f"{name}.clf"
+        model.write_text(src, encoding="utf-8")
+        sub = tmp_path / name
+        sub.mkdir()
+        res = run_job(load_job(_job(sub, model, True, '["deadlock"]')))
+        assert res.reduction == "on"
+        v = res.verdicts["deadlock"]
+        assert v.violated, name
+        trace = save_counterexample(res, "deadlock", sub)
+        rr = replay(trace)
+        assert rr.steps == len(v.counterexample.prefix)
+        # the replayed end state is the reported deadlock, and it is quiescent
+        assert not res.program.steps(rr.states[-1])
+
+
+def test_reduced_paths_are_runs_of_the_program():
+    """With fresh names: every edge on the way to each state of the reduced graph is an
+    enabled step of its source state, and leads to the recorded state."""
+    p = Program.from_text(SHARED_STUCK)
+    ex = Explorer(ClfSystem(p, p.start_context(p.sig.directives[-1].start), Options(reduction=True)))
+    g = ex.run()
+    v = check_deadlock(g)
+    assert v.violated
+    state = ex.states[0]
+    for e in v.counterexample.prefix:
+        step = ex.steps[e]
+        match = [c for c in p.steps(state) if c.template is step.template
+                 and sorted(map(id, (f for _, f in c.consumed))) == sorted(map(id, (f for _, f in step.consumed)))]
+        assert match
+        state = ex.states[g.dst[e]]
+    assert not p.steps(state)
