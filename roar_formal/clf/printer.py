@@ -41,7 +41,8 @@ def _head_name(h, names: list[str]) -> str:
     if isinstance(h, CanonParam):
         return h.hint
     if isinstance(h, Param):
-        return f"{h.hint}{h.id}" if not h.hint.startswith("#") else h.hint
+        # a fresh name prints as hint#id: never an identifier, so a trace can tell it apart
+        return f"{h.hint}#{h.id}" if not h.hint.startswith("#") else h.hint
     if type(h) is EVar:
         return h.name
     if type(h) is Meta:

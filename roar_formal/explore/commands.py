@@ -151,7 +151,7 @@ def _json(r) -> dict:
     from .check import counterexample_steps
 
     out = {"job": r.job.name, "file": str(r.job.path), "model": str(r.job.model), "ok": r.ok,
-           "backend": r.backend, "states": r.graph.n_states, "transitions": r.graph.n_edges,
+           "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states, "transitions": r.graph.n_edges,
            "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4), "memory_mb": round(r.memory_mb, 1),
            "mismatches": r.mismatches, "verdicts": {}}
     for p, v in r.verdicts.items():

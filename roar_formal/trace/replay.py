@@ -9,7 +9,7 @@ plain engine. A lasso's cycle must come back to the state where it started.
 
 from __future__ import annotations
 
-from collections import Counter
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional
@@ -46,17 +46,19 @@ def replay(path: str | Path, on_step: Optional[Callable[[int, dict, Context], No
     state = system.initial()
     states = [state]
     loop_start: Optional[Context] = None
+    names: dict = {}  # fresh name in the trace -> fresh name in this replay (a bijection)
     for rec in steps:
         if rec.get("loop") and loop_start is None:
             loop_start = state
-        want_c = Counter(rec.get("consumed", []))
-        want_p = Counter(rec.get("produced", []))
+        want = (rec.get("consumed", []), rec.get("produced", []))
         nxt = None
         for succ in system.successors(state):
             if succ.label != rec.get("rule"):
                 continue
             d = system.describe_step(succ.step)
-            if Counter(d["consumed"]) == want_c and Counter(d["produced"]) == want_p:
+            m = _match_renaming(want, (d["consumed"], d["produced"]), names)
+            if m is not None:
+                names = m
                 nxt = succ.state
                 break
         if nxt is None:
@@ -75,3 +77,51 @@ def replay(path: str | Path, on_step: Optional[Callable[[int, dict, Context], No
         if not closes:
             raise RoarError(f"{path}: the lasso's cycle does not return to the state where it started")
     return ReplayResult(len(steps), states, closes)
+
+
+_FRESH = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")
+
+
+def _match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
+    """Do the recorded facts equal the replayed ones up to a consistent renaming of fresh
+    names (``hint#id``)? Returns the extended renaming, or None."""
+    for w, g in zip(want, got):
+        if len(w) != len(g):
+            return None
+    ren = dict(names)
+    used = set(ren.values())
+
+    def shape(text: str) -> str:
+        return _FRESH.sub("#", text)
+
+    def assign(w_lines: list, g_lines: list) -> bool:
+        if not w_lines:
+            return True
+        w = w_lines[0]
+        for k, g in enumerate(g_lines):
+            if shape(g) != shape(w):
+                continue
+            wn, gn = _FRESH.findall(w), _FRESH.findall(g)
+            added = []
+            ok = True
+            for a, b in zip(wn, gn):
+                if a in ren:
+                    ok = ren[a] == b
+                elif b in used:
+                    ok = False
+                else:
+                    ren[a] = b
+                    used.add(b)
+                    added.append(a)
+                if not ok:
+                    break
+            if ok and assign(w_lines[1:], g_lines[:k] + g_lines[k + 1:]):
+                return True
+            for a in added:
+                used.discard(ren.pop(a))
+        return False
+
+    for w, g in zip(want, got):
+        if not assign(list(w), list(g)):
+            return None
+    return ren

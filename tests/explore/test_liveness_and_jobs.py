@@ -212,3 +212,30 @@ def test_a_tampered_trace_does_not_replay(tmp_path, capsys):
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert "step 2 (eat) cannot be replayed" in err.replace("\n", " ") and "Traceback" not in err
+
+
+def test_counterexamples_with_fresh_names_replay(tmp_path, capsys):
+    # every step makes fresh names; the trace's names differ from the replay's, consistently
+    model = write(tmp_path, "fresh.clf", """
+dest : type.
+tok : dest -> type. link : dest -> dest -> type. go : type. stuck : dest -> type.
+mk : go -o {Exists a. Exists b. tok a * link a b}.
+hop : tok A * link A B -o {stuck A * stuck B}.
+#exec * go * go.
+""")
+    job = write(tmp_path, "j.toml", '''
+name = "fresh"
+model = "fresh.clf"
+[expect]
+deadlock = "violated"
+''')
+    with pytest.raises(SystemExit) as e:
+        main(["check", str(job), "--traces", str(tmp_path / "t")])
+    assert e.value.code == 0
+    trace = tmp_path / "t" / "fresh.deadlock.jsonl"
+    assert "#" in trace.read_text()  # fresh names are recorded as hint#id
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as e:
+        main(["replay", str(trace)])
+    assert e.value.code == 0, capsys.readouterr()
+    assert "replayed 4 steps" in capsys.readouterr().out
