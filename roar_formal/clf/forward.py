@@ -334,7 +334,7 @@ class Step:
 
 def fire(ctx: Context, tpl: Template, b: list, consumed: list, crule: Optional[CtxRule]) -> Step:
     """Apply a matched template to ``ctx`` (in place)."""
-    step = Step(tpl.name, tpl, tuple(b), list(consumed), crule.uid if crule else None)
+    step = Step(tpl.name, tpl, (), consumed, crule.uid if crule else None)  # bindings set below
     for mode, t in consumed:
         ctx.remove_fact(t, mode)
     if crule is not None and crule.mode != PERS:
