@@ -19,9 +19,9 @@ from typing import Callable, Iterator, Optional
 
 from .context import Context
 from .forward import Run, load_positive
-from .rules import AFF, LIN, PERS
-from .terms import (Aff, Bang, EVar, Exists, Imp, Monad, Node, One, Param, Pi, Root, Tensor, Top, With, deref,
-                    param_term, subst1, zonk)
+from .rules import AFF, LIN, PERS, positive_parts
+from .terms import (Aff, Bang, EVar, Imp, Monad, Node, Param, Pi, Root, Top, With, deref, param_term, subst1,
+                    zonk)
 from .unify import Unifier
 
 
@@ -74,27 +74,12 @@ class Backward:
         """Assume a (possibly positive) type; returns the hypotheses added."""
         added: list[Hyp] = []
 
-        def go(t: Node, m: str) -> None:
-            tt = type(t)
-            if tt is Tensor:
-                go(t.left, m)
-                go(t.right, m)
-            elif tt is One:
-                pass
-            elif tt is Exists:
-                p = Param(t.hint)
-                h = Hyp(t.dom, PERS, name=self.fresh_name(t.hint))
-                added.append(h)
-                go(subst1(t.body, param_term(p)), m)
-            elif tt is Bang:
-                go(t.body, PERS)
-            elif tt is Aff:
-                go(t.body, AFF if m != PERS else PERS)
-            else:
-                h = Hyp(t, m, name=self.fresh_name())
-                added.append(h)
+        def fresh(hint: str, dom: Node) -> Root:
+            added.append(Hyp(dom, PERS, name=self.fresh_name(hint)))  # the new name is usable as a proof
+            return param_term(Param(hint))
 
-        go(ty, mode)
+        for m, part in positive_parts(ty, fresh, mode):
+            added.append(Hyp(part, m, name=self.fresh_name()))
         self.hyps.extend(added)
         return added
 
@@ -298,26 +283,7 @@ class Backward:
 
     def _match_pos(self, s: Node, ctx: Context) -> Iterator[list]:
         """Match the positive type ``s`` against the final context; linear leftovers fail."""
-        items: list[tuple[str, Node]] = []
-
-        def flatten(t: Node, m: str) -> None:
-            tt = type(t)
-            if tt is Tensor:
-                flatten(t.left, m)
-                flatten(t.right, m)
-            elif tt is One:
-                pass
-            elif tt is Exists:
-                x = EVar(t.hint, t.dom)
-                flatten(subst1(t.body, Root(x, ())), m)
-            elif tt is Bang:
-                flatten(t.body, PERS)
-            elif tt is Aff:
-                flatten(t.body, AFF)
-            else:
-                items.append((m, t))
-
-        flatten(s, LIN)
+        items = positive_parts(s, lambda hint, dom: Root(EVar(hint, dom), ()))
         # Each hypothesis occurrence is a separate candidate (as in Celf): two identical
         # linear facts matched by two goal atoms give two solutions.
         occ: list[list] = []  # [mode, fact, used]

@@ -19,9 +19,9 @@ import random
 from dataclasses import dataclass, field
 from typing import Callable, Iterator, Optional
 
-from .context import Context, CtxRule, ground_value
-from .rules import AFF, LIN, PERS, Template
-from .terms import BVar, Lam, Meta, Node, Param, Root, TypeNode, apply, subst, _map_bvars, bvar
+from .context import Context, CtxRule
+from .rules import AFF, LIN, PERS, Template, positive_parts
+from .terms import BVar, Lam, Meta, Node, Param, Root, Top, apply, subst, _map_bvars, bvar
 
 # ------------------------------------------------------------------ matching
 
@@ -173,19 +173,9 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
         it = best_bag.rotated(start) if start >= 0 else list(best_bag.items)
         for t in it:
             for mode in _SERVE[p.mode]:
-                # ctx.count(t, mode), inlined
-                if mode == LIN:
-                    have = lin.get(t, 0)
-                elif mode == AFF:
-                    have = aff.get(t, 0)
-                else:
-                    have = 1 if t in pers else 0
-                if not have:
+                key = (mode, t)
+                if not _available(key, lin, aff, pers, used):
                     continue
-                if mode != PERS:
-                    key = (mode, t)
-                    if used.get(key, 0) >= have:
-                        continue
                 mark = len(trail)
                 if match(pat, t, b, trail):
                     if mode != PERS:
@@ -214,6 +204,15 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
 
     return go(0)
 
+
+
+def _available(key: tuple, lin: dict, aff: dict, pers: dict, used: dict) -> bool:
+    """Is one more copy of fact ``key[1]`` in mode ``key[0]`` left, after what this match used?"""
+    mode, t = key
+    if mode == PERS:
+        return t in pers
+    have = lin.get(t, 0) if mode == LIN else aff.get(t, 0)
+    return have > used.get(key, 0)
 
 
 def _most_selective(prems, done: list, b: list, index: dict):
@@ -287,18 +286,9 @@ def first_match(ctx: Context, tpl: Template, b: list, start: int) -> Optional[li
         pat = p.pattern
         for t in (bag.rotated(start) if start >= 0 else bag.items):
             for mode in _SERVE[p.mode]:
-                if mode == LIN:
-                    have = lin.get(t, 0)
-                elif mode == AFF:
-                    have = aff.get(t, 0)
-                else:
-                    have = 1 if t in pers else 0
-                if not have:
+                key = (mode, t)
+                if not _available(key, lin, aff, pers, used):
                     continue
-                if mode != PERS:
-                    key = (mode, t)
-                    if used.get(key, 0) >= have:
-                        continue
                 mark = len(trail)
                 if match(pat, t, b, trail):
                     if mode != PERS:
@@ -535,33 +525,17 @@ def successor(ctx: Context, choice: Choice) -> tuple[Context, Step]:
 
 def load_positive(ctx: Context, s: Node, compile_fn, name: str = "init") -> list:
     """Add a closed positive type to the context (``Exists`` makes fresh names)."""
-    from .terms import Aff as _Aff, Bang as _Bang, Exists as _Ex, One as _One, Tensor as _Tensor, Top as _Top
     added: list = []
-
-    def go(s: Node, mode: str) -> None:
-        ts = type(s)
-        if ts is _Tensor:
-            go(s.left, mode)
-            go(s.right, mode)
-        elif ts is _One:
-            return
-        elif ts is _Ex:
-            p = Root(Param(s.hint), ())
-            go(subst(s.body, [p]), mode)
-        elif ts is _Bang:
-            go(s.body, PERS)
-        elif ts is _Aff:
-            go(s.body, AFF if mode != PERS else PERS)
-        elif ts is Root:
-            ctx.add_fact(s, mode)
-            added.append((mode, s))
-        elif ts is _Top:
-            ctx.inert.append((mode, s))
+    for mode, part in positive_parts(s, lambda hint, _ty: Root(Param(hint), ())):
+        tp = type(part)
+        if tp is Root:
+            ctx.add_fact(part, mode)
+            added.append((mode, part))
+        elif tp is Top:
+            ctx.inert.append((mode, part))
         else:
-            alts = compile_fn(name, s)
+            alts = compile_fn(name, part)
             nslots = alts[0].nslots if alts else 0
-            r = ctx.add_rule(alts, tuple([None] * nslots), mode, s)
+            r = ctx.add_rule(alts, tuple([None] * nslots), mode, part)
             added.append((mode, r))
-
-    go(s, LIN)
     return added

@@ -17,7 +17,7 @@ from .forward import Choice, Run, Step, enabled_steps, load_positive, successor
 from .parser import parse_file, parse_program
 from .rules import Template, compile_rule
 from .signature import Signature, elaborate
-from .terms import Const, Imp, Monad, Node, Pi, Root, With
+from .terms import Const, Imp, Monad, Node, Pi, With
 
 
 def _ends_in_monad(ty: Node) -> bool:

@@ -18,9 +18,36 @@ from typing import Optional
 from ..errors import Pos, UnsupportedError
 from .printer import show
 from .terms import (Aff, Bang, BVar, Const, Exists, Imp, Lam, Meta, Monad, Node, One, Pi, Root, Tensor, Top,
-                    TypeNode, With, apply)
+                    TypeNode, With, apply, subst)
 
 LIN, PERS, AFF = "1", "!", "@"
+
+
+def positive_parts(s: Node, fresh, mode: str = LIN) -> list[tuple[str, Node]]:
+    """Split a positive type into (mode, part) leaves: atoms, ``T`` and negative types.
+
+    ``Exists x:A. S`` calls ``fresh(hint, A)`` for the term that stands for x (a new
+    name when the type is assumed, a logic variable when it is matched). Used by
+    every place that assumes or matches a positive type, so they agree on modes."""
+    out: list[tuple[str, Node]] = []
+    stack = [(s, mode)]
+    while stack:
+        t, m = stack.pop()
+        tt = type(t)
+        if tt is Tensor:
+            stack.append((t.right, m))
+            stack.append((t.left, m))
+        elif tt is One:
+            continue
+        elif tt is Exists:
+            stack.append((subst(t.body, [fresh(t.hint, t.dom)]), m))
+        elif tt is Bang:
+            stack.append((t.body, PERS))
+        elif tt is Aff:
+            stack.append((t.body, AFF if m != PERS else PERS))
+        else:
+            out.append((m, t))
+    return out
 
 
 @dataclass(eq=False)

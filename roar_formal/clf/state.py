@@ -15,27 +15,7 @@ from __future__ import annotations
 from typing import Optional
 
 from .context import Context
-from .terms import CanonParam, Lam, Node, Param, Root, TypeNode
-
-
-def _params_in(t: Node, acc: dict) -> None:
-    if not t.maxp:
-        return
-    stack = [t]
-    while stack:
-        x = stack.pop()
-        if not x.maxp:
-            continue
-        tx = type(x)
-        if tx is Root:
-            h = x.head
-            if isinstance(h, Param) and h.id > 0:
-                acc.setdefault(h, None)
-            stack.extend(x.args)
-        elif tx is Lam:
-            stack.append(x.body)
-        elif isinstance(x, TypeNode):
-            stack.extend(v for v in (getattr(x, f) for f in type(x).fields) if isinstance(v, Node))
+from .terms import CanonParam, Lam, Node, Param, Root, params_of
 
 
 def _shape(t: Node, colour: dict, memo: dict) -> int:
@@ -96,7 +76,7 @@ def canonical_key(ctx: Context, rounds: int = 3) -> tuple:
     for _, _, payload, _ in items:
         for v in payload:
             if isinstance(v, Node):
-                _params_in(v, params)
+                params_of(v, params)
     if not params:
         return _key(items)
     colour = {p: 0 for p in params}
@@ -108,7 +88,7 @@ def canonical_key(ctx: Context, rounds: int = 3) -> tuple:
             for pos, v in enumerate(payload):
                 if isinstance(v, Node) and v.maxp:
                     found: dict = {}
-                    _params_in(v, found)
+                    params_of(v, found)
                     for p in found:
                         occ[p].append((sh, pos))
         new = {p: hash(tuple(sorted(o))) for p, o in occ.items()}
@@ -124,7 +104,7 @@ def canonical_key(ctx: Context, rounds: int = 3) -> tuple:
         for v in payload:
             if isinstance(v, Node) and v.maxp:
                 found = {}
-                _params_in(v, found)
+                params_of(v, found)
                 for p in sorted(found, key=lambda p: colour[p]):
                     if p not in ren:
                         ren[p] = CanonParam(len(ren))

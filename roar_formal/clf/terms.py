@@ -18,7 +18,6 @@ Types: ``Root`` with a family head (atoms), ``Pi``, ``Imp`` (``->``, ``-o``,
 from __future__ import annotations
 
 import itertools
-from typing import Iterable
 
 # ---------------------------------------------------------------- heads
 
@@ -588,24 +587,25 @@ def free_evars(t: Node) -> list[EVar]:
     return list(out)
 
 
-def params_of(t: Node) -> Iterable[Param]:
-    """Every parameter occurring in ``t`` (iteratively: numerals may be deep)."""
+def params_of(t: Node, acc: dict) -> dict:
+    """Add every fresh parameter of ``t`` to ``acc`` (in order of discovery); canonical
+    names are not counted. Iterative, and closed-over-parameters subterms are skipped."""
     stack = [t]
-    seen: set = set()
     while stack:
         x = stack.pop()
-        if x in seen:
+        if not x.maxp:
             continue
-        seen.add(x)
         tx = type(x)
         if tx is Root:
-            if isinstance(x.head, Param):
-                yield x.head
+            h = x.head
+            if isinstance(h, Param) and h.id > 0:
+                acc.setdefault(h, None)
             stack.extend(x.args)
         elif tx is Lam:
             stack.append(x.body)
         else:
-            stack.extend(v for v in (getattr(x, f) for f in tx.fields) if isinstance(v, Node))
+            stack.extend(v for v in (getattr(x, f) for f in type(x).fields) if isinstance(v, Node))
+    return acc
 
 
 def _mentions_below(t: Node, k: int) -> bool:

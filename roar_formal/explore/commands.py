@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import List, Optional
 
@@ -13,7 +12,6 @@ from rich.live import Live
 from rich.markup import escape
 from rich.table import Table
 
-from ..errors import RoarError
 
 _STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
 
@@ -164,5 +162,3 @@ def _json(r) -> dict:
         out["verdicts"][p] = d
     return out
 
-
-__all__ = ["register", "sys"]
