@@ -39,7 +39,7 @@ __all__ = ["Outcome", "Primitive", "Registry", "Binding", "BindingError", "SUCCE
 
 @dataclass(frozen=True)
 class Outcome:
-    """One abstract result of a primitive: its name, whether it succeeds, and what it writes.
+    """One abstract result of a primitive: its name, whether it succeeds, what it returns and writes.
 
     ``writes`` maps variable names (``var`` of the agent that owns the
     primitive, or ``agent::var``) to the value the outcome leaves there.
@@ -48,6 +48,9 @@ class Outcome:
     name: str
     success: bool = True
     writes: dict[str, object] = field(default_factory=dict, hash=False)
+    #: the value the call returns in this outcome (None: true/false by ``success`` for a
+    #: bool function, the type's default value otherwise)
+    result: object = field(default=None, hash=False)
 
 
 SUCCESS = Outcome("success", True)

@@ -1,0 +1,844 @@
+"""The compiler from a checked agent spec to CLF: declarations and an initial context.
+
+The generic behaviour (request state machine, logic and executive layers,
+error and concurrency handling) is ``framework.clf``. This module adds what is
+particular to a spec:
+
+* one constant per agent, variable (a cell holding the value), task, recipe,
+  function and constraint (a target agent and a predicate);
+* the tables the framework's backward clauses read: pre- and post-conditions
+  of tasks, recipes of a task with their preference and constraint domain,
+  candidates of each predicate (found by the logic layer's ``prove`` at
+  compile time, see :func:`_candidates`), alternatives for the calling-context
+  search;
+* one forward rule per statement site of a recipe (``set``, ``let``,
+  ``make``, ``ensure``, ``wait``, ``assert``, ``abort``, a functional-layer
+  call, a read that runs a task), per pre-condition check, and per
+  constraint (reading the agent's variables when the constraint is received
+  and when its tasks are done);
+* the outcomes of each functional-layer primitive as rules (for exploration),
+  unless the run is driven by Python callables;
+* the initial context: every cell with its initial value, an empty mask per
+  agent, and the request.
+
+Expressions are compiled to ``pexp`` terms evaluated by the framework's
+``peval`` in one step: a statement reads the cells it needs as premises (the
+values substituted as ``pl V``), function calls and reads of task-initialised
+variables become earlier sites that push their result on the recipe's locals.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Optional
+
+from ..errors import Pos, RoarError, UnsupportedError
+from . import ast as a
+from .checks import _Checker, _Scope, check_request
+from .framework import framework_text
+from .functional import DEFAULT_OUTCOMES, Outcome, Registry
+from .pretty import format_expr, format_stmt
+
+__all__ = ["compile_spec", "CompiledModel", "Site"]
+
+_OPS = {"==": "o_eq", "!=": "o_ne", "<": "o_lt", "<=": "o_le", ">": "o_gt", ">=": "o_ge",
+        "+": "o_add", "-": "o_sub", "*": "o_mul", "&&": "o_and", "||": "o_or"}
+#: depth budget of the logic layer's proof search (8.2: limit)
+PROOF_BUDGET = 4
+
+
+def nat(k: int) -> str:
+    out = "z"
+    for _ in range(k):
+        out = f"(s {out})"
+    return out
+
+
+def num_lit(x) -> str:
+    """A number as a CLF literal (exact)."""
+    f = Fraction(x) if not isinstance(x, float) else Fraction(repr(x))
+    if f.denominator == 1:
+        return str(f.numerator)
+    # finite decimal?
+    d = f.denominator
+    k = 0
+    while d % 10 == 0 or d % 2 == 0 or d % 5 == 0:
+        if d == 1:
+            break
+        k += 1
+        if (f * 10 ** k).denominator == 1:
+            break
+        d = (f * 10 ** k).denominator
+    if (f * 10 ** k).denominator != 1:
+        raise RoarError(f"the number {f} has no exact decimal form")
+    sign = "-" if f < 0 else ""
+    n = abs(f.numerator * 10 ** k // f.denominator)
+    s = str(n).rjust(k + 1, "0")
+    return f"{sign}{s[:-k]}.{s[-k:]}"
+
+
+def str_lit(s: str) -> str:
+    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+@dataclass
+class Site:
+    """A compiled statement site: what the trace printer says about its rule."""
+
+    const: str
+    kind: str          # set let make ensure wait assert abort call run-task pre expr
+    agent: str
+    task: str
+    recipe: str
+    pos: Pos
+    text: str
+    var: Optional[str] = None       # set: the variable written
+    function: Optional[str] = None  # call: the function
+    cst: Optional[str] = None       # make/ensure: the constraint constant
+
+
+@dataclass
+class CompiledModel:
+    """A spec compiled to CLF, with the tables that map CLF names back to the spec."""
+
+    spec: a.Spec
+    text: str                        # framework + generated declarations
+    init: str                        # the initial context (a positive type)
+    cells: dict[str, tuple[str, str]] = field(default_factory=dict)      # cell -> (agent, var)
+    cell_types: dict[str, str] = field(default_factory=dict)             # cell -> type
+    agents: dict[str, str] = field(default_factory=dict)                 # const -> agent
+    tasks: dict[str, tuple[str, str]] = field(default_factory=dict)      # const -> (agent, task)
+    recipes: dict[str, tuple[str, str, str]] = field(default_factory=dict)
+    csts: dict[str, tuple[str, str]] = field(default_factory=dict)       # const -> (agent, predicate text)
+    functions: dict[str, tuple[Optional[str], str]] = field(default_factory=dict)  # const -> (owner, name)
+    fn_types: dict[str, str] = field(default_factory=dict)               # const -> result type
+    sites: dict[str, Site] = field(default_factory=dict)
+    request_cst: str = ""
+    request_agent: str = ""
+    structs: dict[str, list[str]] = field(default_factory=dict)          # type -> field names
+    functional: str = "abstract"
+
+    def program(self):
+        """The CLF program (cached)."""
+        if getattr(self, "_program", None) is None:
+            from ..clf.program import Program
+            self._program = Program.from_text(self.text, "<compiled model>")
+        return self._program
+
+
+class _Ctx:
+    """Compilation state of one statement: cells read, sites hoisted before it, locals.
+
+    Calls and reads of task-initialised variables are hoisted first
+    (:meth:`_Compiler.prepare`): each becomes a site run before the statement;
+    a call pushes its result on the locals. The statement's own rule then
+    sees every hoisted value, and pops them.
+    """
+
+    def __init__(self, comp: "_Compiler", agent: a.Agent, env: list[str], sc: _Scope,
+                 snapshot: bool = False, run_tasks: bool = True, task: str = "", recipe: str = ""):
+        self.comp = comp
+        self.agent = agent
+        self.env = env                 # names of locals, innermost first ("" for call results)
+        self.sc = sc
+        self.snapshot = snapshot       # cells as `pc C` (evaluated against a snapshot)
+        self.run_tasks = run_tasks     # reads of task-initialised variables run the task first
+        self.task, self.recipe = task, recipe
+        self.reads: dict[str, str] = {}    # cell -> metavariable
+        self.hoisted: list[str] = []       # sites to run before the statement, in order
+        self.slots: dict[int, int] = {}    # id(Call) -> position of its result from the bottom
+        self.ran: set[str] = set()         # cells whose task was run
+        self.pushed = 0
+
+    def var(self, cell: str) -> str:
+        if self.snapshot:
+            return f"(pc {cell})"
+        v = self.reads.get(cell)
+        if v is None:
+            v = f"V{len(self.reads) + 1}"
+            self.reads[cell] = v
+        return f"(pl {v})"
+
+    def sub(self) -> "_Ctx":
+        """A context for a hoisted site: same locals, its own reads."""
+        c = _Ctx(self.comp, self.agent, self.env, self.sc, self.snapshot, self.run_tasks, self.task, self.recipe)
+        c.slots = self.slots
+        return c
+
+    def envpat(self) -> str:
+        """The locals with the values hoisted for this statement on top (popped by its rule)."""
+        pat = "E"
+        for _ in range(self.pushed):
+            pat = f"(vcons _ {pat})"
+        return pat
+
+
+class _Compiler:
+    def __init__(self, spec: a.Spec, registry: Optional[Registry], functional: str):
+        self.spec = spec
+        self.registry = registry
+        self.functional = functional
+        self.chk = _Checker(spec)
+        for ag in spec.agents:
+            self.chk.declarations(ag)
+        self.chk.errors.clear()
+        self.out: list[str] = []
+        self.model = CompiledModel(spec, "", "", functional=functional)
+        self.n_sites = 0
+        self.cst_by_key: dict[tuple[str, str], str] = {}
+        self.cst_pexp: dict[str, str] = {}   # cst -> pexp (snapshot form)
+        self.cst_ast: dict[str, tuple[a.Agent, a.Expr]] = {}
+        self.task_run_csts: dict[str, str] = {}   # task const -> cst const
+        self.predicates: dict[str, str] = {}      # pexp text -> agent (for cands)
+        self.rules: list[str] = []
+        self.pending_fns: dict[str, tuple[Optional[str], str, str]] = {}
+
+    # ------------------------------------------------------------ names
+    def cell(self, agent: str, var: str) -> str:
+        c = f"v_{agent}_{var}"
+        self.model.cells[c] = (agent, var)
+        return c
+
+    def task_c(self, agent: str, task: str) -> str:
+        return f"t_{agent}_{task}"
+
+    def recipe_c(self, agent: str, task: str, recipe: str) -> str:
+        return f"r_{agent}_{task}_{recipe}"
+
+    def fn_c(self, owner: Optional[str], name: str) -> str:
+        c = f"f_{owner}_{name}" if owner else f"f_{name}"
+        self.model.functions[c] = (owner, name)
+        return c
+
+    def site(self, kind: str, ag: a.Agent, task: str, recipe: str, pos: Pos, text: str, **kw) -> str:
+        self.n_sites += 1
+        c = f"pp{self.n_sites}_{kind.replace('-', '_')}"   # the rule of the site is st<n>_<kind>
+        self.model.sites[c] = Site(c, kind, ag.name, task, recipe, pos, text, **kw)
+        self.out.append(f"{c} : site.")
+        return c
+
+    # ------------------------------------------------------------ values
+    def default(self, ty: Optional[str]) -> str:
+        if ty in ("int", "double"):
+            return "(vnum 0)"
+        if ty == "bool":
+            return "(vbool ff)"
+        if ty in ("string", "identifier") or ty is None:
+            return '(vstr "")'
+        fields = self.model.structs.get(ty)
+        if fields is not None:
+            return "(vrec " + self._list([self.default(self.field_types[ty][f]) for f in fields]) + ")"
+        return "(vopq 0)"
+
+    def value(self, v, ty: Optional[str]) -> str:
+        """A Python value as a CLF value term (for initial values and outcomes)."""
+        if isinstance(v, bool):
+            return "(vbool tt)" if v else "(vbool ff)"
+        if isinstance(v, (int, float, Fraction)):
+            return f"(vnum {num_lit(v)})"
+        if isinstance(v, str):
+            return f"(vstr {str_lit(v)})"
+        if isinstance(v, (tuple, list)):
+            return "(vrec " + self._list([self.value(x, None) for x in v]) + ")"
+        if isinstance(v, dict) and ty in self.model.structs:
+            return "(vrec " + self._list([self.value(v[f], self.field_types[ty][f])
+                                          for f in self.model.structs[ty]]) + ")"
+        raise RoarError(f"cannot represent the value {v!r} in the model")
+
+    @staticmethod
+    def _list(items: list[str]) -> str:
+        out = "vnil"
+        for x in reversed(items):
+            out = f"(vcons {x} {out})"
+        return out
+
+    # ------------------------------------------------------------ expressions
+    def ty(self, e: a.Expr, cx: _Ctx) -> Optional[str]:
+        return self.chk.ty(e, cx.sc)
+
+    def prepare(self, e: a.Expr, cx: _Ctx) -> None:
+        """Hoist the calls and task runs of ``e``, in evaluation order (arguments first)."""
+        if isinstance(e, a.Call):
+            for x in e.args:
+                self.prepare(x, cx)
+            self.hoist_call(e, cx)
+            return
+        if isinstance(e, (a.Name, a.Remote)) and not cx.snapshot and cx.run_tasks:
+            if isinstance(e, a.Name) and e.name in cx.env:
+                return
+            owner = cx.agent if isinstance(e, a.Name) else self.spec.agent(e.agent)
+            task = owner.reading_task(e.name)
+            cell = self.cell(owner.name, e.name)
+            if task is not None and cell not in cx.ran:
+                cx.ran.add(cell)
+                self.hoist_task_run(owner, e.name, task, cx, e.pos)
+            return
+        if isinstance(e, a.LastError):
+            return
+        for ch in e.children():
+            if isinstance(ch, a.Expr):
+                self.prepare(ch, cx)
+
+    def hoist_task_run(self, owner: a.Agent, var: str, task: str, cx: _Ctx, pos: Pos) -> None:
+        """Reading ``var`` runs its task first (4.2: an initialiser naming a task), as a task-run request."""
+        tc = self.task_c(owner.name, task)
+        run_c = self.task_run_cst(owner, task)
+        s = self.site("run-task", cx.agent, cx.task, cx.recipe, pos, f"read {owner.name}::{var} (runs {task})")
+        self.rules.append(
+            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go -o act I R0 T0 Rc0 N\n"
+            f"  -o {{Exists r. ctl I (m_make r) C E * rstat I go * act I R0 T0 Rc0 (s N) * owns I r\n"
+            f"      * rq r a_{owner.name} {run_c} I (k_task {tc}) * rs r s_pending\n"
+            f"      * hs r (h_tasks (vcons (vtsk {tc}) vnil)) vnil vnil vnil vnone}}.")
+        cx.hoisted.append(s)
+
+    def hoist_call(self, e: a.Call, cx: _Ctx) -> None:
+        found = self.spec.resolve_function(cx.agent, e)
+        if found:
+            owner, _decl = found[0]
+            result_ty = self.chk.fn_sigs.get((owner, e.name), (None, None))[0]
+        elif e.name in a.BUILTINS:
+            owner, result_ty = None, a.BUILTINS[e.name][0]
+        else:
+            raise UnsupportedError(f"call of '{e.qualified}'", e.pos)
+        if cx.snapshot:
+            raise UnsupportedError(
+                f"a function call ('{e.qualified}') in a task pre-condition or a constraint "
+                f"(the logic layer decides these on the agent's variables alone)", e.pos)
+        sub = cx.sub()
+        args = [self.pexp(x, sub) for x in e.args]
+        fc = self.fn_c(owner, e.name)
+        self.model.fn_types[fc] = result_ty
+        self.pending_fns[fc] = (owner, e.name, result_ty)
+        s = self.site("call", cx.agent, cx.task, cx.recipe, e.pos, format_expr(e), function=e.qualified)
+        prem, outs = self.premises(sub)
+        vals = [f"A{i + 1}" for i in range(len(args))]
+        evals = "".join(f" -o !peval vnil E vnil {p} {v}" for p, v in zip(args, vals))
+        self.rules.append(
+            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go{prem}{evals}\n"
+            f"  -o {{Exists d. pending {fc} {self._list(vals)} d * ctl I (m_call d {s}) C E * rstat I go{outs}}}.")
+        cx.hoisted.append(s)
+        cx.slots[id(e)] = len(cx.env)
+        cx.env.insert(0, "")
+        cx.pushed += 1
+
+    def pexp(self, e: a.Expr, cx: _Ctx) -> str:
+        """``e`` as a pexp term (after :meth:`prepare`): cells read as premises, calls as their pushed results."""
+        if isinstance(e, a.BoolLit):
+            return "(pl (vbool tt))" if e.value else "(pl (vbool ff))"
+        if isinstance(e, a.IntLit):
+            return f"(pl (vnum {e.value}))"
+        if isinstance(e, a.DoubleLit):
+            return f"(pl (vnum {num_lit(Fraction(repr(e.value)))}))"
+        if isinstance(e, a.StringLit):
+            return f"(pl (vstr {str_lit(e.value)}))"
+        if isinstance(e, a.Name):
+            if e.name in cx.env:
+                return f"(ploc {nat(cx.env.index(e.name))})"
+            return cx.var(self.cell(cx.agent.name, e.name))
+        if isinstance(e, a.Remote):
+            return cx.var(self.cell(e.agent, e.name))
+        if isinstance(e, a.Call):
+            if id(e) not in cx.slots:
+                self.hoist_call(e, cx)   # (a call in a pre-condition, compiled without prepare)
+            return f"(ploc {nat(len(cx.env) - 1 - cx.slots[id(e)])})"
+        if isinstance(e, a.Field):
+            ty = self.ty(e.base, cx)
+            fields = self.model.structs.get(ty, [])
+            if e.name not in fields:
+                raise UnsupportedError(f"field '{e.name}' of a value of type {ty}", e.pos)
+            return f"(pfield {nat(fields.index(e.name))} {self.pexp(e.base, cx)})"
+        if isinstance(e, a.Unary):
+            inner = self.pexp(e.operand, cx)
+            return f"(pnot {inner})" if e.op == "!" else f"(pneg {inner})"
+        if isinstance(e, a.Binary):
+            op = _OPS.get(e.op)
+            if e.op == "/":
+                op = "o_idiv" if self.ty(e.left, cx) == "int" else "o_div"
+            if op is None:
+                raise UnsupportedError(f"operator '{e.op}'", e.pos)
+            return f"(pbin {op} {self.pexp(e.left, cx)} {self.pexp(e.right, cx)})"
+        if isinstance(e, a.LastError):
+            c = self.cst_for(cx.agent, e.constraint, None)
+            return f"(plast {c})"
+        raise UnsupportedError(f"expression {format_expr(e)}", e.pos)
+
+    def expr(self, e: a.Expr, cx: _Ctx) -> str:
+        self.prepare(e, cx)
+        return self.pexp(e, cx)
+
+    def premises(self, cx: _Ctx, writes: Optional[dict[str, str]] = None) -> tuple[str, str]:
+        """Premises reading the cells of ``cx`` (and the cells written), and the facts that put them back."""
+        writes = writes or {}
+        prem, outs = [], []
+        for cell, v in cx.reads.items():
+            prem.append(f"contains {cell} {v}")
+            outs.append(f"contains {cell} {writes.get(cell, v)}")
+        for cell, v in writes.items():
+            if cell not in cx.reads:
+                prem.append(f"contains {cell} _")
+                outs.append(f"contains {cell} {v}")
+        return "".join(" -o " + p for p in prem), "".join(" * " + o for o in outs)
+
+    # ------------------------------------------------------------ constraints
+    def cst_for(self, sender: a.Agent, pred: a.Expr, target: Optional[str]) -> str:
+        """The constant of a constraint: the same (target, predicate) gives the same constant."""
+        tmp = a.Constraint(pred, (), pos=pred.pos)
+        target = target or tmp.target(sender.name) or sender.name
+        tag = self.spec.agent(target)
+        pcx = _Ctx(self, tag, [], self.chk.scope(tag), snapshot=True)
+        # the sender's unqualified names are its own variables
+        text = self.pexp(self._qualify(pred, sender.name), pcx)
+        key = (target, text)
+        c = self.cst_by_key.get(key)
+        if c is None:
+            c = f"c{len(self.cst_by_key) + 1}_{target}"
+            self.cst_by_key[key] = c
+            self.cst_pexp[c] = text
+            self.cst_ast[c] = (tag, self._qualify(pred, sender.name))
+            self.model.csts[c] = (target, format_expr(pred))
+            self.predicates[text] = target
+        return c
+
+    def _qualify(self, e: a.Expr, own: str) -> a.Expr:
+        """Unqualified names of agent ``own`` written ``own::name`` (a predicate read by another agent)."""
+        import dataclasses
+        if isinstance(e, a.Name):
+            return a.Remote(own, e.name, pos=e.pos)
+        if isinstance(e, a.Call):
+            return e
+        kw = {}
+        for f in dataclasses.fields(e):
+            if not f.compare:
+                continue
+            v = getattr(e, f.name)
+            if isinstance(v, a.Expr):
+                kw[f.name] = self._qualify(v, own)
+        return dataclasses.replace(e, **kw) if kw else e
+
+    def task_run_cst(self, owner: a.Agent, task: str) -> str:
+        tc = self.task_c(owner.name, task)
+        c = self.task_run_csts.get(tc)
+        if c is None:
+            c = f"crun_{owner.name}_{task}"
+            self.task_run_csts[tc] = c
+            self.model.csts[c] = (owner.name, f"run task {task}")
+        return c
+
+    # ------------------------------------------------------------ recipes
+    def block(self, ag: a.Agent, task: a.Task, r: a.Recipe, stmts, sc: _Scope) -> list[str]:
+        env: list[str] = []
+        code: list[str] = []
+        for st in stmts:
+            code += self.stmt(ag, task, r, st, env, sc)
+            self.chk.stmt(st, sc)   # keep the checker's scope in step (types of locals)
+        return code
+
+    def stmt(self, ag: a.Agent, task: a.Task, r: a.Recipe, st: a.Stmt, env: list[str], sc: _Scope) -> list[str]:
+        cx = _Ctx(self, ag, env, sc, task=task.name, recipe=r.name)
+        text = format_stmt(st)
+        kind = {a.Set: "set", a.Let: "let", a.ExprStmt: "expr", a.Make: "make", a.Ensure: "ensure",
+                a.Abort: "abort", a.Wait: "wait", a.Assert: "assert"}[type(st)]
+        # hoist calls and task runs
+        if isinstance(st, (a.Set, a.Let)):
+            self.prepare(st.value, cx)
+        elif isinstance(st, a.ExprStmt):
+            self.prepare(st.expr, cx)
+        elif isinstance(st, (a.Wait, a.Assert)):
+            self.prepare(st.cond, cx)
+        elif isinstance(st, (a.Make, a.Ensure)):
+            for v in st.constraint.writes(ag.name).values():
+                self.prepare(v, cx)
+        site_kw = {}
+        if isinstance(st, a.Set):
+            site_kw["var"] = st.target.name
+        if isinstance(st, (a.Make, a.Ensure)):
+            c = st.constraint
+            site_kw["cst"] = self.cst_for(ag, c.expr, c.target(ag.name))
+        s = self.site(kind, ag, task.name, r.name, st.pos, text, **site_kw)
+        E = cx.envpat()
+        head = f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go"
+        if isinstance(st, a.Set):
+            cell = self.cell(ag.name, st.target.name)
+            val = self.pexp(st.value, cx)
+            prem, outs = self.premises(cx, {cell: "X"})
+            self.rules.append(f"{head}{prem} -o !peval vnil {E} vnil {val} X\n"
+                              f"  -o {{ctl I m_run C E * rstat I go{outs}}}.")
+        elif isinstance(st, a.Let):
+            val = self.pexp(st.value, cx)
+            prem, outs = self.premises(cx)
+            self.rules.append(f"{head}{prem} -o !peval vnil {E} vnil {val} X\n"
+                              f"  -o {{ctl I m_run C (vcons X E) * rstat I go{outs}}}.")
+        elif isinstance(st, a.ExprStmt):
+            self.rules.append(f"{head} -o {{ctl I m_run C E * rstat I go}}.")
+        elif isinstance(st, (a.Make, a.Ensure)):
+            self.send(ag, st, cx, s, head)
+        elif isinstance(st, a.Abort):
+            k = env.index(st.handle)
+            self.rules.append(f"{head} -o act I R0 T0 Rc0 (s N) -o !nth E {nat(k)} (vreq R) -o owns I R\n"
+                              f"  -o {{ctl I m_run C E * rstat I go * act I R0 T0 Rc0 N * abortreq R}}.")
+        else:  # wait, assert
+            cond = self.pexp(st.cond, cx)
+            prem, outs = self.premises(cx)
+            self.rules.append(f"{head}{prem} -o !peval vnil {E} vnil {cond} (vbool tt)\n"
+                              f"  -o {{ctl I m_run C E * rstat I go{outs}}}.")
+            false = f"{s}_false : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
+            false += f" -o !peval vnil {E} vnil {cond} (vbool ff)"
+            if kind == "assert":
+                # the recipe fails (a local failure); nothing more of the body runs
+                self.rules.append(f"{false} -o act I R0 T0 Rc0 N\n"
+                                  f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N"
+                                  f" * kill I (k_local {s}){outs}}}.")
+            elif cx.hoisted:
+                # calls or task runs in the predicate: poll, i.e. run them again
+                again = f"(ccons {s} C)"
+                for h in reversed(cx.hoisted):
+                    again = f"(ccons {h} {again})"
+                self.rules.append(f"{false}\n  -o {{ctl I m_run {again} E * rstat I go{outs}}}.")
+            else:
+                # block until one of the variables read changes
+                snap = self._list(list(cx.reads.values()))
+                self.rules.append(f"{false}\n  -o {{ctl I (m_block {snap}) (ccons {s} C) E * rstat I go{outs}}}.")
+                fresh = {c: f"W{i + 1}" for i, c in enumerate(cx.reads)}
+                wprem = "".join(f" -o contains {c} {w}" for c, w in fresh.items())
+                wouts = "".join(f" * contains {c} {w}" for c, w in fresh.items())
+                self.rules.append(
+                    f"{s}_wake : ctl I (m_block Old) (ccons {s} C) E{wprem}\n"
+                    f"  -o !val_eq Old {self._list(list(fresh.values()))} ff\n"
+                    f"  -o {{ctl I m_run (ccons {s} C) E{wouts}}}.")
+        for _ in range(cx.pushed):
+            env.pop(0)
+        if isinstance(st, a.Let):
+            env.insert(0, st.name)
+        if isinstance(st, a.Ensure) and st.handle:
+            env.insert(0, st.handle)
+        return cx.hoisted + [s]
+
+    def send(self, ag: a.Agent, st, cx: _Ctx, s: str, head: str) -> None:
+        """make / ensure (4.4, 8.3): a fresh request with the where values, owned by the activation."""
+        c = st.constraint
+        target = c.target(ag.name)
+        cst = self.cst_for(ag, c.expr, target)
+        writes = c.writes(ag.name)
+        wvals = [self.pexp(v, cx) for v in writes.values()]
+        cells = [self.cell(target, w) for w in writes]
+        known = self.where_cells.setdefault(cst, cells)
+        if known != cells:
+            raise UnsupportedError("the same constraint sent with different where clauses", st.pos)
+        prem, outs = self.premises(cx)
+        names = [f"W{i + 1}" for i in range(len(wvals))]
+        E = cx.envpat()
+        evals = "".join(f" -o !peval vnil {E} vnil {p} {w}" for p, w in zip(wvals, names))
+        kind = "make" if isinstance(st, a.Make) else "ensure"
+        req = (f"rq r a_{target} {cst} I k_{kind} * rs r s_sent * owns I r"
+               f" * hs r h_select vnil vnil vnil (vsome {self._list(names)})")
+        if kind == "make":
+            ctl = "ctl I (m_make r) C E"
+        else:
+            ctl = "ctl I m_run C (vcons (vreq r) E)" if st.handle else "ctl I m_run C E"
+        self.rules.append(
+            f"{head} -o act I R0 T0 Rc0 N{prem}{evals}\n"
+            f"  -o {{Exists r. {req} * {ctl} * rstat I go * act I R0 T0 Rc0 (s N){outs}}}.")
+
+    def recipe(self, ag: a.Agent, t: a.Task, r: a.Recipe) -> None:
+        o = self.out
+        rc = self.recipe_c(ag.name, t.name, r.name)
+        body = self.block(ag, t, r, r.body, self.chk.scope(ag).fresh())
+        end = self.block(ag, t, r, r.end, self.chk.scope(ag).fresh())
+        end_code = end + ["s_done"]
+        o.append(f"body_{rc} : bodycode {rc} {self._code(body + ['s_end'] + end_code)}.")
+        o.append(f"end_{rc} : endcode {rc} {self._code(end_code)}.")
+        # pre-condition checks, in a checker activation that counts the false ones
+        env: list[str] = []
+        pre_code = []
+        sc = self.chk.scope(ag).fresh(last_error=True)
+        hsp = "hs R (h_rchk T P Cs Sc Rc) EC F Pl W"
+        for e in r.pre:
+            cx = _Ctx(self, ag, env, sc, run_tasks=False, task=t.name, recipe=r.name)
+            self.prepare(e, cx)
+            cond = self.pexp(e, cx)
+            s = self.site("pre", ag, t.name, r.name, e.pos, format_expr(e))
+            prem, outs = self.premises(cx)
+            E = cx.envpat()
+            self.rules.append(
+                f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o chk I R Rc N -o {hsp}{prem}\n"
+                f"  -o !peval vnil {E} EC {cond} (vbool B) -o !pre_count B N N1\n"
+                f"  -o {{ctl I m_run C E * rstat I go * chk I R Rc N1 * {hsp}{outs}}}.")
+            for _ in range(cx.pushed):
+                env.pop(0)
+            pre_code += cx.hoisted + [s]
+        pre_code.append("s_pdone")
+        o.append(f"pre_{rc} : precode {rc} {self._code(pre_code)}.")
+        dom = sorted({self.cst_for(ag, c.expr, c.target(ag.name)) for _, c in r.constraints()})
+        o.append(f"cdom_{rc} : cdom {rc} {self._list([f'(vcst {c})' for c in dom])}.")
+        o.append(f"rinfo_{rc} : rinfo {rc} {r.preference()} {len(r.pre)} {len(r.constraint_domain(ag.name))}.")
+        # alternatives for the calling-context search (5.3): another recipe of the
+        # task whose constraint domain avoids the constraint
+        for c in dom:
+            others = [q for q in t.recipes if q is not r and
+                      c not in {self.cst_for(ag, x.expr, x.target(ag.name)) for _, x in q.constraints()}]
+            o.append(f"alt_{rc}_{c} : alt {rc} {c} {'tt' if others else 'ff'}.")
+
+    def _code(self, sites: list[str]) -> str:
+        out = "cnil"
+        for s in reversed(sites):
+            out = f"(ccons {s} {out})"
+        return out
+
+    # ------------------------------------------------------------ the whole spec
+    def compile(self, request: a.Constraint) -> CompiledModel:
+        spec, m = self.spec, self.model
+        self.where_cells: dict[str, list[str]] = {}
+        self.field_types: dict[str, dict[str, str]] = {}
+        for ag in spec.agents:
+            for td in ag.types:
+                if isinstance(td, a.StructType):
+                    key = f"{ag.name}::{td.name}"
+                    m.structs[key] = [f.name for f in td.fields]
+                    sc = self.chk.scope(ag)
+                    self.field_types[key] = {f.name: self.chk.resolve_type(f.type, sc) for f in td.fields}
+        o = self.out
+        o.append("\n% ================================================================ compiled spec")
+        ids = 0
+        for ag in spec.agents:
+            m.agents[f"a_{ag.name}"] = ag.name
+            o.append(f"a_{ag.name} : agent.")
+            for v in ag.vars:
+                c = self.cell(ag.name, v.name)
+                m.cell_types[c] = self.chk.var_types.get((ag.name, v.name))
+                o.append(f"{c} : dest.")
+            for t in ag.tasks:
+                ids += 1
+                tc = self.task_c(ag.name, t.name)
+                m.tasks[tc] = (ag.name, t.name)
+                o.append(f"{tc} : task.")
+                o.append(f"id_{tc} : task_id {tc} {ids}.")
+                for r in t.recipes:
+                    rc = self.recipe_c(ag.name, t.name, r.name)
+                    m.recipes[rc] = (ag.name, t.name, r.name)
+                    o.append(f"{rc} : recipe.")
+        # tasks: pre/post (symbolic), recipes
+        for ag in spec.agents:
+            for t in ag.tasks:
+                tc = self.task_c(ag.name, t.name)
+                pcx = _Ctx(self, ag, [], self.chk.scope(ag), snapshot=True)
+                pcx.task, pcx.recipe = t.name, ""
+                pres = [self.pexp(self._qualify(e, ag.name), pcx) for e in t.pre]
+                for p in pres:
+                    self.predicates[p] = ag.name
+                o.append(f"tpre_{tc} : tpre {tc} {self._list([f'(vpexp {p})' for p in pres])}.")
+                for i, e in enumerate(t.post):
+                    for conj in a.conjuncts(e):
+                        o.append(f"post_{tc}_{i}_{len(o)} : post {tc} (fatom {self.pexp(self._qualify(conj, ag.name), pcx)}).")
+                rcs = [f"(vrcp {self.recipe_c(ag.name, t.name, r.name)})" for r in t.recipes]
+                o.append(f"recipes_{tc} : recipes {tc} {self._list(rcs)}.")
+        # recipe bodies
+        for ag in spec.agents:
+            for t in ag.tasks:
+                for r in t.recipes:
+                    self.recipe(ag, t, r)
+        # the request
+        top = spec.agent(request.target())
+        req_cst = self.cst_for(top, request.expr, top.name)
+        m.request_cst, m.request_agent = req_cst, top.name
+        writes = request.writes()
+        cells = [self.cell(top.name, w) for w in writes]
+        if self.where_cells.get(req_cst, cells) != cells:
+            raise UnsupportedError("the request's where clause differs from the one its recipes use",
+                                   request.pos)
+        self.where_cells[req_cst] = cells
+        wvals = []
+        for v in writes.values():
+            wvals.append(self.const_value(v))
+        # constraints: identities, predicates, select and final rules
+        for i, (c, (target, _)) in enumerate(sorted(m.csts.items()), start=1):
+            o.append(f"{c} : cst.")
+            o.append(f"id_{c} : cst_id {c} {i}.")
+        for c in sorted(self.cst_pexp):
+            self.constraint_rules(c)
+        # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
+        o.extend("st" + r[2:] if r.startswith("pp") else r for r in self.rules)
+        # functions and outcomes
+        for fc, (owner, name) in sorted(m.functions.items()):
+            o.append(f"{fc} : fn.")
+        if self.functional == "abstract":
+            for fc, (owner, name, rty) in sorted(self.pending_fns.items()):
+                o.extend(self.outcome_rules(fc, owner, name, rty))
+        # initial context
+        init = []
+        for ag in spec.agents:
+            init.append(f"mask a_{ag.name} vnil")
+            for v in ag.vars:
+                c = self.cell(ag.name, v.name)
+                init.append(f"contains {c} {self.initial(ag, v)}")
+        init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * rs r0 s_sent"
+                    f" * hs r0 h_select vnil vnil vnil (vsome {self._list(wvals)})")
+        m.init = "Exists r0. " + " * ".join(init)
+        o.append(f"\n#exec * {m.init}.")
+        body = "\n".join(o)
+        text = framework_text() + body + "\n"
+        # the logic layer: candidates of every predicate, by proof search (8.2)
+        text += self.candidates(text)
+        m.text = text
+        return m
+
+    def const_value(self, e: a.Expr) -> str:
+        if isinstance(e, a.IntLit):
+            return f"(vnum {e.value})"
+        if isinstance(e, a.DoubleLit):
+            return f"(vnum {num_lit(Fraction(repr(e.value)))})"
+        if isinstance(e, a.BoolLit):
+            return "(vbool tt)" if e.value else "(vbool ff)"
+        if isinstance(e, a.StringLit):
+            return f"(vstr {str_lit(e.value)})"
+        if isinstance(e, a.Unary) and e.op == "-" and isinstance(e.operand, (a.IntLit, a.DoubleLit)):
+            v = e.operand.value
+            return f"(vnum {num_lit(-Fraction(repr(v)) if isinstance(v, float) else -v)})"
+        raise UnsupportedError(f"a request's where value must be a literal, not '{format_expr(e)}'", e.pos)
+
+    def initial(self, ag: a.Agent, v: a.Var) -> str:
+        ty = self.chk.var_types.get((ag.name, v.name))
+        if v.init is None or ag.reading_task(v) is not None:
+            return self.default(ty)
+        try:
+            return self.const_value(v.init)
+        except UnsupportedError:
+            raise UnsupportedError(
+                f"the initial value of '{ag.name}::{v.name}' must be a literal (or name a task)", v.init.pos)
+
+    def constraint_rules(self, c: str) -> None:
+        tag, pred = self.cst_ast[c]
+        # the snapshot: variables of the agent its tasks' pre-conditions read, and the predicate's
+        cells: list[str] = []
+
+        def add(e):
+            for ref in a.refs(e):
+                owner = tag.name if isinstance(ref, a.Name) else ref.agent
+                cell = self.cell(owner, ref.name)
+                if cell not in cells:
+                    cells.append(cell)
+        add(self._qualify(pred, tag.name))
+        for t in tag.tasks:
+            for e in t.pre:
+                add(self._qualify(e, tag.name))
+        where = self.where_cells.get(c, [])
+        for w in where:
+            if w not in cells:
+                cells.append(w)
+        vars_ = {cell: f"V{i + 1}" for i, cell in enumerate(cells)}
+        wvars = {cell: f"W{i + 1}" for i, cell in enumerate(where)}
+        pred_p = self.cst_pexp[c]
+        rq = f"rq R a_{tag.name} {c} J K"
+
+        def snap(values):
+            return self._list([f"(vpair (vcell {cell}) {values[cell]})" for cell in cells])
+        reads = "".join(f" -o contains {cell} {v}" for cell, v in vars_.items())
+        back = "".join(f" * contains {cell} {v}" for cell, v in vars_.items())
+        # first selection: the where values are written, then the logic layer decides
+        newv = dict(vars_)
+        newv.update(wvars)
+        wl = self._list([wvars[w] for w in where])
+        first_reads = reads
+        first_back = "".join(f" * contains {cell} {newv[cell]}" for cell in cells)
+        self.rules.append(
+            f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{first_reads}\n"
+            f"  -o !mtasks M MT -o !decide {pred_p} {snap(newv)} F MT D\n"
+            f"  -o {{hs R (h_dec D) EC F Pl vnone * rs R s_pending * {rq} * mask a_{tag.name} M{first_back}}}.")
+        self.rules.append(
+            f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
+            f"  -o !mtasks M MT -o !decide {pred_p} {snap(vars_)} F MT D\n"
+            f"  -o {{hs R (h_dec D) EC F Pl vnone * {rq} * mask a_{tag.name} M{back}}}.")
+        self.rules.append(
+            f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
+            f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"
+            f"  -o {{hs R (h_verdict B) EC F Pl W * {rq}{back}}}.")
+
+    def outcome_rules(self, fc: str, owner: Optional[str], name: str, rty: Optional[str]) -> list[str]:
+        prim = None
+        if self.registry is not None:
+            prim = self.registry.lookup(name, owner)
+        outcomes = prim.outcomes if prim is not None else (
+            DEFAULT_OUTCOMES if rty == "bool" else (Outcome("success", True),))
+        rules = []
+        for o in outcomes:
+            oname = re.sub(r"\W", "_", o.name)
+            writes_p, writes_o = "", ""
+            for var, val in o.writes.items():
+                agent, _, vn = var.rpartition("::")
+                cell = self.cell(agent or owner, vn)
+                writes_p += f" -o contains {cell} _"
+                writes_o += f" * contains {cell} {self.value(val, self.model.cell_types.get(cell))}"
+            if o.result is not None:
+                res = f"return {self.value(o.result, rty)} D"
+            elif rty == "bool":
+                res = f"return (vbool {'tt' if o.success else 'ff'}) D"
+            elif o.success:
+                res = f"return {self.default(rty)} D"
+            else:
+                res = "callfail D"
+            rules.append(f"outcome_{fc}_{oname} : pending {fc} _ D{writes_p} -o {{{res}{writes_o}}}.")
+        return rules
+
+    def candidates(self, text: str) -> str:
+        """The logic layer at compile time: which tasks' post-conditions entail each predicate (4.3, 8.2).
+
+        The entailment ``prove`` is the framework's proof search (hyp/prove
+        with a step budget); it does not depend on values, so it is run once
+        per (predicate, task) here, by the engine's backward chaining, and
+        recorded as ``cands`` clauses in declaration order.
+        """
+        from ..clf.backward import Backward
+        from ..clf.program import Program
+        goals = []
+        for p, agent in sorted(self.predicates.items()):
+            for t in self.spec.agent(agent).tasks:
+                goals.append((p, self.task_c(agent, t.name)))
+        budget = nat(PROOF_BUDGET)
+        queries = "".join(f"#query * * * 1 prove {budget} {tc} {self._form(p)}.\n" for p, tc in goals)
+        prog = Program.from_text(text + "\n" + queries, "<compiled model>")
+        found: dict[str, list[str]] = {p: [] for p in self.predicates}
+        for (p, tc), q in zip(goals, [d for d in prog.sig.directives if hasattr(d, "goal")]):
+            for _ in Backward(prog).solve(q.goal):
+                found[p].append(f"(vtsk {tc})")
+                break
+        out = ["\n% the logic layer's candidates (prove, run by the compiler)"]
+        for i, p in enumerate(sorted(found)):
+            out.append(f"cands_{i} : cands {p} {self._list(found[p])}.")
+        return "\n".join(out) + "\n"
+
+    @staticmethod
+    def _form(p: str) -> str:
+        """A predicate as a formula: conjunctions split."""
+        m = re.fullmatch(r"\(pbin o_and (.*)\)", p)
+        if m:
+            left, right = _split2(m.group(1))
+            return f"(fand {_Compiler._form(left)} {_Compiler._form(right)})"
+        return f"(fatom {p})"
+
+
+def _split2(s: str) -> tuple[str, str]:
+    """Split 'X Y' where X and Y are parenthesised terms."""
+    depth = 0
+    for i, ch in enumerate(s):
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+            if depth == 0:
+                return s[:i + 1], s[i + 1:].strip()
+    raise ValueError(s)
+
+
+def compile_spec(spec: a.Spec, request, registry: Optional[Registry] = None,
+                 functional: str = "abstract") -> CompiledModel:
+    """Compile ``spec`` with ``request`` (text or Constraint) to CLF.
+
+    ``functional`` is "abstract" (each primitive's declared outcomes are
+    rules: the explorer branches on them) or "python" (pending calls are
+    answered by the registry's callables, outside the signature).
+    """
+    req = check_request(spec, request)
+    if req.target() is None:
+        raise RoarError("the request must name exactly one agent", req.pos)
+    return _Compiler(spec, registry, functional).compile(req)

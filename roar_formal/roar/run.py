@@ -1,0 +1,498 @@
+"""Running a compiled ROAR model: a committed-choice run of the CLF engine, seen at the ROAR level.
+
+The run is the engine's forward chaining on the compiled signature; nothing
+here decides what the agents do. The one thing outside the signature is the
+functional layer: a ``pending F Args D`` fact is a call of primitive F, and
+the runner answers it (with the registry's Python callable, or with the
+primitive's first declared outcome, or with a failure outcome when a
+``--fault`` names the call), adding ``return V D`` or ``callfail D``.
+
+Every CLF step is recorded; :func:`events_of` reads the ROAR-level events a
+step means from the facts it consumed and produced (a request sent, a state
+change of figure 2, tasks and recipes chosen, a primitive started or ended, a
+variable written, an activation paused or resumed). So a ROAR event is always
+one CLF step of the same run.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Callable, Optional
+
+from ..clf.forward import Run
+from ..clf.printer import show
+from ..clf.terms import Const, Root, const, num_term, num_value, string_term, string_value
+from ..errors import RoarError
+from .compile import CompiledModel
+from .functional import Outcome, Registry
+
+__all__ = ["Fault", "RoarEvent", "RunResult", "run_model", "parse_fault", "value_of"]
+
+FINAL = {"s_success": "success", "s_failure": "failure", "s_aborted": "aborted"}
+STATE_NAMES = {"s_sent": "sent", "s_pending": "pending", "s_running": "running", "s_tempfail": "temporary failure",
+               "s_paused": "paused", "s_success": "success", "s_failure": "failure", "s_aborted": "aborted"}
+
+
+@dataclass(frozen=True)
+class Fault:
+    """``NAME`` (every call of primitive NAME fails), ``NAME:K`` (its K-th call fails) or
+    ``NAME=OUTCOME`` (every call takes that declared outcome)."""
+
+    name: str
+    call: Optional[int] = None
+    outcome: Optional[str] = None
+
+    def __str__(self) -> str:
+        return self.name + (f":{self.call}" if self.call else "") + (f"={self.outcome}" if self.outcome else "")
+
+
+_FAULT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*(?:::[A-Za-z_][A-Za-z0-9_]*)?)(?::(\d+))?(?:=([A-Za-z_][A-Za-z0-9_]*))?$")
+
+
+def parse_fault(text: str) -> Fault:
+    m = _FAULT.match(text.strip())
+    if not m or (m.group(2) is not None and int(m.group(2)) < 1):
+        raise RoarError(f"--fault {text!r}: expected NAME, NAME:K (the K-th call, from 1) or NAME=OUTCOME, "
+                        f"where NAME is a function ('f' or 'agent::f')")
+    return Fault(m.group(1), int(m.group(2)) if m.group(2) else None, m.group(3))
+
+
+@dataclass
+class RoarEvent:
+    """One ROAR-level event, the meaning of CLF step ``step``."""
+
+    step: int
+    kind: str          # sent state tasks recipe recipe-end primitive-start primitive-end write pause resume
+    agent: str
+    text: str
+    data: dict = field(default_factory=dict)
+
+    def as_json(self) -> dict:
+        return {"kind": self.kind, "agent": self.agent, "text": self.text, **self.data}
+
+
+@dataclass
+class RunResult:
+    model: CompiledModel
+    steps: list          # [(rule, consumed, produced)] as printed facts
+    events: list[RoarEvent]
+    quiescent: bool
+    outcome: str         # the request's final state (success, failure, ...) or "unfinished"
+    error_context: list[str]
+    final: dict[str, object]   # agent::var -> value (Python)
+    requests: dict[str, str]   # label -> "agent: predicate"
+    ctx: object = None
+
+    @property
+    def ok(self) -> bool:
+        return self.outcome == "success"
+
+
+# ------------------------------------------------------------------ values
+
+
+def value_of(t) -> object:
+    """A CLF value term as a Python value (numbers as int or Fraction)."""
+    h = t.head.name if isinstance(t.head, Const) else None
+    if h == "vnum":
+        q = num_value(t.args[0])
+        return int(q) if q.denominator == 1 else q
+    if h == "vbool":
+        return t.args[0].head.name == "tt"
+    if h == "vstr":
+        return string_value(t.args[0])
+    if h == "vrec":
+        return tuple(value_of(x) for x in _items(t.args[0]))
+    if h == "vopq":
+        return ("opaque", int(num_value(t.args[0])))
+    if h in ("vnil", "vcons"):
+        return [value_of(x) for x in _items(t)]
+    return show(t)
+
+
+def _items(t):
+    out = []
+    while isinstance(t.head, Const) and t.head.name == "vcons":
+        out.append(t.args[0])
+        t = t.args[1]
+    return out
+
+
+class _Values:
+    """Python values to CLF terms (opaque values kept in a table, named by a number)."""
+
+    def __init__(self, model: CompiledModel):
+        self.model = model
+        self.opaque: list = []
+
+    def term(self, v, ty: Optional[str] = None):
+        if isinstance(v, bool):
+            return const("vbool", const("tt" if v else "ff"))
+        if isinstance(v, (int, Fraction)):
+            return const("vnum", num_term(v))
+        if isinstance(v, float):
+            return const("vnum", num_term(Fraction(repr(v))))
+        if isinstance(v, str):
+            return const("vstr", string_term(v))
+        if ty in self.model.structs:
+            names = self.model.structs[ty]
+            if isinstance(v, dict):
+                vals = [v[n] for n in names]
+            elif isinstance(v, (tuple, list)):
+                vals = list(v)
+            else:
+                vals = [getattr(v, n) for n in names]
+            return const("vrec", self.list([self.term(x) for x in vals]))
+        if isinstance(v, (tuple, list)):
+            return const("vrec", self.list([self.term(x) for x in v]))
+        self.opaque.append(v)
+        return const("vopq", num_term(len(self.opaque)))
+
+    def python(self, t):
+        v = value_of(t)
+        if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque" and 1 <= v[1] <= len(self.opaque):
+            return self.opaque[v[1] - 1]
+        return v
+
+    @staticmethod
+    def list(items):
+        out = const("vnil")
+        for x in reversed(items):
+            out = const("vcons", x, out)
+        return out
+
+
+# ------------------------------------------------------------------ the functional layer
+
+
+class _Resolver:
+    """Answers pending calls: faults first, then the registry's callable, then the declared outcomes."""
+
+    def __init__(self, model: CompiledModel, registry: Optional[Registry], faults: list[Fault], values: _Values):
+        self.model = model
+        self.registry = registry
+        self.faults = faults
+        self.values = values
+        self.calls: dict[str, int] = {}
+        self.used: set[Fault] = set()
+
+    def _matches(self, f: Fault, owner: Optional[str], name: str) -> bool:
+        return f.name in (name, f"{owner}::{name}")
+
+    def answer(self, fc: str, args: list):
+        """(result term or None for a failure, outcome description)."""
+        owner, name = self.model.functions[fc]
+        rty = self.model.fn_types.get(fc)
+        qual = f"{owner}::{name}" if owner else name
+        n = self.calls[qual] = self.calls.get(qual, 0) + 1
+        prim = self.registry.lookup(name, owner) if self.registry is not None else None
+        outcomes = prim.outcomes if prim is not None else ()
+        for f in self.faults:
+            if self._matches(f, owner, name) and (f.call is None or f.call == n):
+                self.used.add(f)
+                if f.outcome is not None:
+                    o = next((o for o in outcomes if o.name == f.outcome), None)
+                    if o is None:
+                        raise RoarError(f"--fault {f}: primitive '{qual}' has no outcome '{f.outcome}' "
+                                        f"(its outcomes: {', '.join(o.name for o in outcomes) or 'none declared'})")
+                else:
+                    o = next((o for o in outcomes if not o.success), Outcome("failure", False))
+                return self._outcome(o, rty), f"fault: {o.name}"
+        if prim is not None and prim.fn is not None:
+            py = [self.values.python(x) for x in args]
+            try:
+                v = prim(*py)
+            except RoarError:
+                raise
+            except Exception as exc:  # the functional layer failed: a primitive failure
+                return None, f"raised {type(exc).__name__}: {exc}"
+            if rty is None or v is None and rty != "bool":
+                return const("vunit"), "done"
+            return self.values.term(v, rty), "returned"
+        o = next((o for o in outcomes if o.success), outcomes[0] if outcomes else Outcome("success", True))
+        return self._outcome(o, rty), o.name
+
+    def _outcome(self, o: Outcome, rty: Optional[str]):
+        if o.result is not None:
+            return self.values.term(o.result, rty)
+        if rty == "bool":
+            return const("vbool", const("tt" if o.success else "ff"))
+        if not o.success:
+            return None
+        return self.values.term(_default(rty, self.model), rty)
+
+
+def _default(rty, model):
+    if rty in ("int", "double"):
+        return 0
+    if rty == "bool":
+        return False
+    if rty in ("string", "identifier"):
+        return ""
+    if rty in model.structs:
+        return tuple(0 for _ in model.structs[rty])
+    return 0
+
+
+# ------------------------------------------------------------------ events
+
+
+class _Narrator:
+    """Reads ROAR-level events from CLF steps."""
+
+    def __init__(self, model: CompiledModel):
+        self.m = model
+        self.labels: dict = {}       # req param -> label
+        self.req_info: dict = {}     # label -> (agent, text)
+        self.calls: dict = {}        # dest -> (agent, function text)
+        self.acts: dict = {}         # inst -> (agent, task, recipe)
+
+    def label(self, r) -> str:
+        lab = self.labels.get(r)
+        if lab is None:
+            lab = f"R{len(self.labels)}"
+            self.labels[r] = lab
+        return lab
+
+    def _name(self, t) -> str:
+        return t.head.name if isinstance(t.head, Const) else show(t)
+
+    def events(self, i: int, step) -> list[RoarEvent]:
+        m = self.m
+        out: list[RoarEvent] = []
+        cons = {}
+        for _mode, f in step.consumed:
+            if type(f) is Root:
+                cons.setdefault(self._name(f) if False else f.head, []).append(f)
+        prod = [f for _mode, f in step.produced if type(f) is Root]
+        by = lambda fam, facts: [f for f in facts if isinstance(f.head, Const) and f.head.name == fam]
+        consumed = [f for _m, f in step.consumed if type(f) is Root]
+        rule = step.rule
+        # requests created
+        for f in by("rq", prod):
+            r = f.args[0]
+            if r not in self.labels:
+                lab = self.label(r)
+                agent, text = m.csts.get(self._name(f.args[2]), ("?", "?"))
+                agent = m.agents.get(self._name(f.args[1]), agent)
+                self.req_info[lab] = (agent, text)
+                kind = self._name(f.args[4]) if isinstance(f.args[4].head, Const) else "?"
+                if kind in ("k_make", "k_ensure"):
+                    site = m.sites.get(_site_of(rule))
+                    sender = site.agent if site else "outside"
+                    out.append(RoarEvent(i, "sent", sender,
+                                         f"{kind[2:]} {lab} to {agent}: {text}", {"request": lab}))
+        # state changes
+        old = {f.args[0]: self._name(f.args[1]) for f in by("rs", consumed)}
+        for f in by("rs", prod):
+            r, s = f.args[0], self._name(f.args[1])
+            if old.get(r) != s:
+                lab = self.label(r)
+                agent, text = self.req_info.get(lab, ("?", "?"))
+                if s == "s_sent" and r not in old:
+                    continue
+                prev = old.get(r)
+                out.append(RoarEvent(i, "state", agent, f"{lab} {STATE_NAMES.get(prev, 'new') if prev else 'new'}"
+                                     f" -> {STATE_NAMES[s]}  ({text})",
+                                     {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s]}))
+        for f in by("rs", consumed):
+            r = f.args[0]
+            if not any(g.args[0] is r for g in by("rs", prod)) and rule.startswith("aborted"):
+                lab = self.label(r)
+                agent, text = self.req_info.get(lab, ("?", "?"))
+                out.append(RoarEvent(i, "state", agent, f"{lab} {STATE_NAMES.get(self._name(f.args[1]))} -> aborted"
+                                     f"  ({text})", {"request": lab, "to": "aborted"}))
+        # tasks chosen
+        if rule == "tasks_chosen":
+            for f in by("hs", prod):
+                ts = [m.tasks[self._name(x.args[0])][1] for x in _items(f.args[1].args[0])]
+                lab = self.label(f.args[0])
+                agent = self.req_info.get(lab, ("?",))[0]
+                out.append(RoarEvent(i, "tasks", agent, f"{lab}: tasks {' then '.join(ts)}",
+                                     {"request": lab, "tasks": ts}))
+        # recipe chosen / ended
+        for f in by("act", prod):
+            if not by("act", consumed):
+                agent, task, recipe = m.recipes[self._name(f.args[3])]
+                self.acts[f.args[0]] = (agent, task, recipe)
+                lab = self.label(f.args[1])
+                out.append(RoarEvent(i, "recipe", agent, f"{lab}: task {task}, recipe {recipe}",
+                                     {"request": lab, "task": task, "recipe": recipe}))
+        for f in by("rdone", prod):
+            agent, task, recipe = m.recipes[self._name(f.args[1])]
+            reason = _reason(f.args[2], m)
+            lab = self.label(f.args[0])
+            out.append(RoarEvent(i, "recipe-end", agent, f"{lab}: recipe {recipe} " +
+                                 ("done" if reason == "ok" else f"ended: {reason}"),
+                                 {"request": lab, "recipe": recipe, "reason": reason}))
+        # primitives
+        for f in by("pending", prod):
+            fc = self._name(f.args[0])
+            owner, name = m.functions[fc]
+            args = ", ".join(_show_value(x) for x in _items(f.args[1]))
+            site = m.sites.get(_site_of(rule))
+            agent = site.agent if site else (owner or "?")
+            self.calls[f.args[2]] = (agent, f"{name}({args})")
+            out.append(RoarEvent(i, "primitive-start", agent, f"{name}({args})", {"function": name}))
+        for f in by("return", consumed):
+            if f.args[1] in self.calls:
+                agent, call = self.calls.pop(f.args[1])
+                out.append(RoarEvent(i, "primitive-end", agent, f"{call} = {_show_value(f.args[0])}",
+                                     {"value": str(value_of(f.args[0]))}))
+        for f in by("callfail", consumed):
+            if f.args[0] in self.calls:
+                agent, call = self.calls.pop(f.args[0])
+                out.append(RoarEvent(i, "primitive-end", agent, f"{call} failed", {"failed": True}))
+        # variable writes
+        before = {f.args[0]: f.args[1] for f in by("contains", consumed)}
+        site = m.sites.get(_site_of(rule))
+        written = f"v_{site.agent}_{site.var}" if site is not None and site.kind == "set" else None
+        for f in by("contains", prod):
+            c = f.args[0]
+            if c in before and (before[c] is not f.args[1] or self._name(c) == written):
+                cell = self._name(c)
+                if cell in m.cells:
+                    agent, var = m.cells[cell]
+                    out.append(RoarEvent(i, "write", agent, f"{agent}::{var} = {_show_value(f.args[1])}",
+                                         {"var": f"{agent}::{var}", "value": str(value_of(f.args[1]))}))
+        # pause / resume of an activation
+        if rule in ("pause", "paused", "continue", "continued"):
+            for f in by("rstat", prod):
+                who = self.acts.get(f.args[0], ("?", "?", "?"))
+                z = self._name(f.args[1])
+                kind = "resume" if z == "go" else "pause"
+                out.append(RoarEvent(i, kind, who[0], f"recipe {who[2]} {'resumed' if kind == 'resume' else 'paused'}",
+                                     {"recipe": who[2]}))
+        return out
+
+
+def _site_of(rule: str) -> str:
+    m = re.match(r"st(\d+)_([a-z_]+?)(?:_false|_wake)?$", rule)
+    return f"pp{m.group(1)}_{m.group(2)}" if m else ""
+
+
+def _reason(t, m) -> str:
+    h = t.head.name if isinstance(t.head, Const) else "?"
+    if h == "k_ok":
+        return "ok"
+    if h == "k_abort":
+        return "aborted"
+    if h == "k_local":
+        site = m.sites.get(t.args[0].head.name)
+        return f"local failure at {site.pos.line}:{site.pos.col} ({site.text})" if site else "local failure"
+    if h == "k_cst":
+        return f"constraint failed: {m.csts.get(t.args[0].head.name, ('?', '?'))[1]}"
+    if h == "k_switch":
+        return f"switched away from {m.csts.get(t.args[0].head.name, ('?', '?'))[1]}"
+    return show(t)
+
+
+def _show_value(t) -> str:
+    v = value_of(t)
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, Fraction):
+        return str(float(v))
+    if isinstance(v, str):
+        return repr(v)
+    return str(v)
+
+
+def describe_ec(t, m: CompiledModel) -> list[str]:
+    out = []
+    for x in _items(t):
+        h = x.head.name
+        if h == "vcst":
+            out.append(f"constraint failed: {m.csts.get(x.args[0].head.name, ('?', '?'))[1]}")
+        elif h == "vviol":
+            out.append(f"post-condition violated: {m.csts.get(x.args[0].head.name, ('?', '?'))[1]}")
+        elif h == "vtsk":
+            agent, task = m.tasks.get(x.args[0].head.name, ("?", "?"))
+            out.append(f"task failed: {agent}::{task}")
+        elif h == "vsite":
+            s = m.sites.get(x.args[0].head.name)
+            out.append(f"local failure: {s.agent}.{s.task}.{s.recipe} at {s.pos.line}:{s.pos.col}: {s.text}"
+                       if s else "local failure")
+        else:
+            out.append(show(x))
+    return out
+
+
+# ------------------------------------------------------------------ the run
+
+
+def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, registry: Optional[Registry] = None,
+              faults: Optional[list[Fault]] = None, fair: bool = False,
+              on_event: Optional[Callable[[RoarEvent], None]] = None) -> RunResult:
+    """Run the model to quiescence (or ``max_steps`` CLF steps); the functional layer answers pending calls."""
+    prog = model.program()
+    start = next(d for d in prog.sig.directives if hasattr(d, "start"))
+    ctx = prog.start_context(start.start)
+    values = _Values(model)
+    resolver = _Resolver(model, registry, list(faults or ()), values)
+    narrator = _Narrator(model)
+    steps: list = []
+    events: list[RoarEvent] = []
+
+    def on_step(step, _ctx):
+        i = len(steps) + 1
+        steps.append((step.rule, [show(f) for _m, f in step.consumed if type(f) is Root],
+                      [show(f) for _m, f in step.produced if type(f) is Root]))
+        for ev in narrator.events(i, step):
+            events.append(ev)
+            if on_event:
+                on_event(ev)
+
+    for _mode, f, _n in ctx.facts():
+        if type(f) is Root and isinstance(f.head, Const) and f.head.name == "rq":
+            narrator.label(f.args[0])
+            narrator.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
+    runner = Run(prog.templates, ctx, seed=seed, fair=fair, prover=prog.prover(), on_step=on_step)
+    pending = Const("pending")
+    quiescent = False
+    while True:
+        quiescent = runner.run(max_steps - runner.steps if max_steps else None)
+        if not quiescent:
+            break
+        bag = ctx.index.get(pending)
+        calls = list(bag.items) if bag else []
+        if not calls:
+            break
+        # answer the oldest call first (all pending calls were made while the rest waited)
+        for f in calls:
+            fc, args, d = f.args[0].head.name, _items(f.args[1]), f.args[2]
+            result, how = resolver.answer(fc, args)
+            ans = const("return", result, d) if result is not None else const("callfail", d)
+            step = runner.external([(f)], [ans], rule=f"functional_layer")
+            on_step(step, ctx)
+        if max_steps and runner.steps >= max_steps:
+            quiescent = False
+            break
+    unused = [f for f in resolver.faults if f not in resolver.used]
+    if unused:
+        names = ", ".join(str(f) for f in unused)
+        raise RoarError(f"--fault {names}: no such call happened in this run (check the name and the call number)")
+    return _result(model, ctx, steps, events, quiescent, narrator)
+
+
+def _result(model, ctx, steps, events, quiescent, narrator) -> RunResult:
+    outcome, ec = "unfinished", []
+    final: dict = {}
+    from ..clf.rules import LIN
+    for mode, f, _n in ctx.facts():
+        if type(f) is not Root or not isinstance(f.head, Const):
+            continue
+        h = f.head.name
+        if h == "rs" and narrator.labels.get(f.args[0]) == "R0":
+            outcome = STATE_NAMES.get(f.args[1].head.name, "?")
+        elif h == "contains" and f.args[0].head.name in model.cells:
+            agent, var = model.cells[f.args[0].head.name]
+            final[f"{agent}::{var}"] = value_of(f.args[1])
+        elif h == "ecf" and narrator.labels.get(f.args[0]) == "R0":
+            ec = describe_ec(f.args[1], model)
+    if outcome == "unfinished" and not steps:
+        outcome = "unfinished"
+    reqs = {lab: f"{a}: {t}" for lab, (a, t) in narrator.req_info.items()}
+    return RunResult(model, steps, events, quiescent, outcome, ec, final, reqs, ctx)
