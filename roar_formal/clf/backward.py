@@ -17,11 +17,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Iterator, Optional
 
+from .builtins import BUILTINS, BuiltinError, evaluate, input_values
 from .context import Context
-from .forward import Run, load_positive
+from .forward import Run, inst, load_positive, match
 from .rules import AFF, LIN, PERS, positive_parts
-from .terms import (Aff, Bang, EVar, Imp, Monad, Node, Param, Pi, Root, Top, With, deref, param_term, subst1,
-                    zonk)
+from .terms import (NUMBER, Aff, Bang, EVar, Imp, Lit, Monad, Node, Param, Pi, Root, Top, With, deref, num_term,
+                    param_term, string_term, subst1, zonk)
 from .unify import Unifier
 
 
@@ -161,6 +162,10 @@ class Backward:
     # -------------------------------------------------------------- atoms
     def _atom(self, goal: Root, floor: int, aff_ok: bool) -> Iterator[None]:
         fam = goal.head
+        bi = BUILTINS.get(fam)
+        if bi is not None:
+            yield from self._builtin(bi, goal)
+            return
         hyps = self.hyps
         for i in range(len(hyps) - 1, -1, -1):
             h = hyps[i]
@@ -179,6 +184,20 @@ class Backward:
             mark, hmark = self.u.mark(), len(self.htrail)
             yield from self._clause(ty, goal, floor, aff_ok, name)
             self._undo(mark, hmark)
+
+    def _builtin(self, bi, goal: Root) -> Iterator[tuple]:
+        """A goal of a built-in family, decided natively (at most one solution; hypotheses
+        of the family are not consulted: none can be declared)."""
+        res = evaluate(bi, goal.args)
+        if res is None or res is False:
+            return
+        if res is True:
+            yield ("app", bi.name, [])
+            return
+        mark = self.u.mark()
+        if self.u.unify(goal.args[-1], res):
+            yield ("app", bi.name, [])
+        self.u.undo(mark)
 
     def _clause(self, ty: Node, goal: Root, floor: int, aff_ok: bool, head: str) -> Iterator[tuple]:
         prems: list[tuple[str, Node]] = []
@@ -350,7 +369,10 @@ def head_families(ty: Node) -> set:
 def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> Iterator[None]:
     """Solve a forward rule's backward premise: slots unbound so far become logic variables,
     persistent facts of the context serve as hypotheses; committed to the first proof."""
-    from .forward import inst
+    bi = BUILTINS.get(p.family)
+    if bi is not None:
+        yield from _builtin_premise(bi, tpl, p, b, trail)
+        return
     evs: dict[int, Root] = {}
     vals = list(b)
     for i, v in enumerate(vals):
@@ -384,6 +406,47 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
     finally:
         bw._undo(mark, hmark)
         bw.hyps = saved
+
+
+def _builtin_premise(bi, tpl, p, b: list, trail: list) -> Iterator[None]:
+    """A built-in premise of a forward rule, evaluated directly on the slot values: the
+    inputs must be bound; the output is matched against the computed value (binding
+    its slot, or comparing it with the value the slot already has)."""
+    args = p.pattern.args
+    vals = []
+    terms = []
+    for i in range(bi.n_inputs):
+        a = args[i]
+        if a.metas:
+            try:
+                a = inst(a, b)
+            except KeyError:
+                raise BuiltinError(f"built-in '{bi.name}' in rule '{tpl.name}': its inputs must be ground "
+                                   f"(argument {i + 1} is not determined when the premise is tried); "
+                                   f"mode {bi.name} {bi.mode}") from None
+        terms.append(a)
+        h = a.head if type(a) is Root else None
+        if type(h) is Lit and h.family is bi.arg_types[i]:
+            vals.append(h.value)
+            continue
+        try:  # not a literal of the right type: let the common check say why
+            input_values(bi, tuple(terms) + args[i + 1:])
+        except BuiltinError as e:
+            raise BuiltinError(f"{e.message} (in rule '{tpl.name}')") from None
+        raise AssertionError("input_values accepted a non-literal")
+    r = bi.fn(*vals)
+    if not bi.output:
+        if r:
+            yield
+        return
+    if r is None:
+        return
+    res = num_term(r) if bi.arg_types[-1] is NUMBER else string_term(r)
+    mark = len(trail)
+    if match(args[-1], res, b, trail):
+        yield
+    while len(trail) > mark:
+        b[trail.pop()] = None
 
 
 class _Names:

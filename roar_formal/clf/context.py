@@ -14,6 +14,7 @@ import itertools
 from dataclasses import dataclass
 from typing import Iterator, Optional
 
+from .builtins import BUILTINS
 from .rules import AFF, LIN, PERS, Template
 from .terms import Meta, Node, Root
 
@@ -185,6 +186,8 @@ class Context:
         keys = []
         for t in alts:
             for p in t.premises:
+                if p.family in BUILTINS:
+                    continue  # decided by the bindings alone: never the reason to wake a rule
                 if p.backward or p.family is None:
                     keys.append(None)
                     continue

@@ -19,6 +19,7 @@ import random
 from dataclasses import dataclass, field
 from typing import Callable, Iterator, Optional
 
+from .builtins import BUILTINS
 from .context import Context, CtxRule
 from .rules import AFF, LIN, PERS, Template, positive_parts
 from .terms import BVar, Lam, Meta, Node, Param, Root, Top, apply, subst, _map_bvars, bvar
@@ -371,7 +372,10 @@ class Run:
         self.always: list[Template] = []
         for t in self.templates:
             fams = {p.family for p in t.premises if not p.backward}
-            if any(p.backward for p in t.premises) or not t.premises:
+            # A built-in premise is a function of the slots the context premises bind, so
+            # such a rule is woken by facts like any other; a premise proved from clauses
+            # may depend on anything, so its rule is retried after every step.
+            if any(p.backward and p.family not in BUILTINS for p in t.premises) or not t.premises:
                 self.always.append(t)
             for f in fams:
                 self.by_family.setdefault(f, []).append(t)
@@ -420,6 +424,28 @@ class Run:
                 return consumed
             return None
         return first_match(self.ctx, tpl, b, start)
+
+    def external(self, consumed: list, produced: list, rule: str = "external") -> Step:
+        """A step taken outside the signature (the functional layer answering a call):
+        remove the linear facts ``consumed``, add the linear facts ``produced``, wake
+        the rules they may enable. Returned as a :class:`Step` for traces."""
+        ctx = self.ctx
+        step = Step(rule, None, (), [(LIN, t) for t in consumed])
+        for t in consumed:
+            ctx.remove_fact(t, LIN)
+        for t in produced:
+            ctx.add_fact(t, LIN)
+            step.produced.append((LIN, t))
+            for tpl in self.by_family.get(t.head, ()):
+                self.agenda.add(tpl)
+            if ctx.rules:
+                for uid in ctx.rules_woken_by(t):
+                    r = ctx.rules.get(uid)
+                    if r is not None:
+                        self.agenda.add(r)
+        for tpl in self.always:
+            self.agenda.add(tpl)
+        return step
 
     def run(self, max_steps: Optional[int] = None) -> bool:
         """Run; True if quiescent at the end, False if stopped by the bound.

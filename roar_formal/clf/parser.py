@@ -14,6 +14,7 @@ import contextvars
 import dataclasses
 import functools
 import re
+from fractions import Fraction
 from importlib import resources
 from os import PathLike
 from typing import Iterable, Union
@@ -39,6 +40,15 @@ def _bound(tok: Token) -> s.Bound:
     return "*" if tok.type == "STAR" else int(tok)
 
 
+_UNESCAPE = {"\\": "\\", '"': '"', "n": "\n", "t": "\t"}
+_ESCAPE_RE = re.compile(r"\\(.)")
+
+
+def _unescape(tok: str) -> str:
+    """The value of a string literal token (the lexer admits only the four escapes)."""
+    return _ESCAPE_RE.sub(lambda m: _UNESCAPE[m[1]], tok[1:-1])
+
+
 _ARROW_OPS = {"-o": "-o", "->": "->", "-@": "-@", "o-": "-o", "<-": "->", "@-": "-@"}
 
 
@@ -58,6 +68,12 @@ class _Build(Transformer):
 
     def one(self, c):
         return s.One(_tpos(c[0]))
+
+    def num_lit(self, c):
+        return s.Num(_tpos(c[0]), Fraction(str(c[0])), str(c[0]))
+
+    def str_lit(self, c):
+        return s.Str(_tpos(c[0]), _unescape(str(c[0])))
 
     def underscore(self, c):
         return s.Underscore(_tpos(c[0]))
@@ -215,7 +231,7 @@ _LITERAL = {
     "_COMMA": ",", "_COLON": ":", "_EQUAL": "=", "_DOT": ".",
     "QUERY": "#query", "EXEC": "#exec", "TRACE": "#trace", "MODE": "#mode",
 }
-_EXPR_START = {"ID", "TYPE", "PI", "EXISTS", "UNDERSCORE", "ONE", "BANG", "AT", "LAMBDA",
+_EXPR_START = {"ID", "TYPE", "PI", "EXISTS", "UNDERSCORE", "ONE", "NUMLIT", "STRING", "BANG", "AT", "LAMBDA",
                "LPAR", "LBRACE", "LANGLE"}
 _OPERATORS = {"RLOLLI", "RARROW", "RAFFI", "LOLLI", "ARROW", "AFFI", "STAR", "AMP"}
 _ARROWS = _OPERATORS - {"STAR"}  # '*' is also a bound and a mode
@@ -230,7 +246,7 @@ _BOUND_HINT = {
     "EXEC": "#exec takes a step bound before its start type",
     "TRACE": "#trace takes a step bound before its start type",
 }
-_OTHER = {"NUMBER": "a natural number", "PROJ": "'#1' or '#2'"}
+_OTHER = {"NUMBER": "a natural number", "PROJ": "'#1' or '#2'", "NUMLIT": "a number", "STRING": "a string"}
 _WORD = re.compile(r"[A-Za-z0-9_']*")
 
 
@@ -240,8 +256,10 @@ def _found(tok: Token) -> str:
         return "end of file"
     if tok.type == "ID":
         return f"identifier '{tok}'"
-    if tok.type == "NUMBER":
+    if tok.type in ("NUMBER", "NUMLIT"):
         return f"number {tok}"
+    if tok.type == "STRING":
+        return f"string {tok}"
     if tok.type in ("TYPE", "PI", "EXISTS"):
         return f"keyword '{tok}'"
     if tok.type in _DIRECTIVES:
@@ -349,9 +367,6 @@ def _hints(e: UnexpectedToken, expected: set[str], text: str) -> list[str]:
             hints.append("every declaration and directive ends with '.'")
         elif tok.type in _DIRECTIVES or (tok.type in ("_COLON", "_EQUAL") and _starts_line(tok, text)):
             hints.append("is the '.' ending the previous declaration missing?")
-
-    if tok.type == "NUMBER" and "ONE" in expected:
-        hints.append("the only number that is an expression is '1'")
     return hints
 
 
@@ -367,6 +382,9 @@ def _convert(e: UnexpectedInput, text: str, file: str) -> SyntaxError_:
     if isinstance(e, UnexpectedToken):
         tok = e.token
         expected = _accepted(e)
+        if tok.type == "NUMBER" and "NUMLIT" in expected and tok.start_pos is not None:
+            # digits where a number literal may stand, which the literal's pattern refused
+            return SyntaxError_(_bad_number(text, tok.start_pos), Pos(file, tok.line or 1, tok.column or 1))
         if tok.type == "$END":
             line, col = (tok.end_line, tok.end_column) if tok.end_line else (tok.line, tok.column)
         else:
@@ -395,10 +413,43 @@ def _bad_characters(e: UnexpectedCharacters, text: str) -> str:
         if allowed & _DIRECTIVES or word[1:2].isalpha() and not allowed & {"PROJ"}:
             return f"unknown directive '{word}'; the directives are #query, #exec, #trace and #mode"
         return f"unexpected '{word}'; a projection is written '#1' or '#2'"
+    if rest.startswith('"'):
+        return _bad_string(rest)
+    if _NUMBER_START.match(rest):
+        return _bad_number(text, e.pos_in_stream)
     ch = rest[:1]
     shown = repr(ch) if not ch.isprintable() or ch in "'\\" else f"'{ch}'"
     return (f"illegal character {shown}; identifiers are made of letters, digits, '_' and \"'\", "
             f"and start with a letter or '_'")
+
+
+_NUMBER_START = re.compile(r"-?[0-9]")
+_NUMBER_WORD = re.compile(r"-?[0-9][0-9A-Za-z_'.]*")
+
+
+def _bad_number(text: str, start: int) -> str:
+    word = _NUMBER_WORD.match(text, start)
+    shown = word.group(0).rstrip(".") if word else text[start:start + 1]
+    return (f"malformed number literal '{shown}'; a number is written as digits with an optional "
+            f"'-' and at most one '.' followed by digits (5, -1, 2.5)")
+
+
+def _bad_string(rest: str) -> str:
+    line = rest.split("\n", 1)[0]
+    i = 1
+    while i < len(line):
+        c = line[i]
+        if c == '"':
+            break
+        if c == "\\":
+            esc = line[i:i + 2]
+            if esc[1:] not in ('"', "\\", "n", "t"):
+                return (f"invalid escape '{esc}' in a string literal; the escapes are "
+                        "'\\\"', '\\\\', '\\n' and '\\t'")
+            i += 2
+            continue
+        i += 1
+    return "unterminated string literal: a string must end with '\"' on the line it starts"
 
 
 def _end(text: str) -> tuple[int, int]:

@@ -9,6 +9,7 @@ right end of an operator or application), and parenthesised elsewhere.
 from __future__ import annotations
 
 from . import surface as s
+from .terms import format_number, format_string
 
 __all__ = ["format_expr", "format_item", "format_program"]
 
@@ -47,6 +48,12 @@ def _fmt(e: s.Expr, prec: int, tail: bool) -> str:
         return "1"
     if isinstance(e, s.Underscore):
         return "_"
+    if isinstance(e, s.Num):
+        # `1` alone reads back as the unit, so the number one is written `1.0`
+        text = e.text or format_number(e.value)
+        return "1.0" if text == "1" else text
+    if isinstance(e, s.Str):
+        return format_string(e.value)
     if isinstance(e, s.Annot):
         return f"({_fmt(e.term, _BINDER, True)} : {_fmt(e.ty, _BINDER, True)})"
     if isinstance(e, s.Monad):

@@ -1,13 +1,15 @@
 """Printing terms and types in Celf's concrete syntax.
 
 Implicit arguments (reconstructed by elaboration) are hidden, as Celf hides
-them. Printing is iterative over argument spines so that a unary numeral of
-depth 40,000 prints without hitting Python's recursion limit.
+them. Literals of the built-in domain print as written (``5``, ``-2.5``,
+``"a\\"b"``); a rational that is not a finite decimal prints as ``1/3``, which
+does not read back. Printing is iterative over argument spines so that a unary
+numeral of depth 40,000 prints without hitting Python's recursion limit.
 """
 
 from __future__ import annotations
 
-from .terms import (Aff, Bang, BVar, CanonParam, Const, EVar, Exists, Imp, Lam, Meta, Monad,
+from .terms import (Aff, Bang, BVar, CanonParam, Const, EVar, Exists, Imp, Lam, Lit, Meta, Monad,
                     Node, One, Param, Pi, Root, Tensor, Top, Type, With, apply)
 
 #: number of leading implicit arguments of each constant (filled by the signature)
@@ -35,6 +37,8 @@ def show(t: Node, names: list[str] | None = None, show_implicit: bool = False,
 def _head_name(h, names: list[str]) -> str:
     if type(h) is Const:
         return h.name
+    if type(h) is Lit:
+        return h.text  # 5, -2.5, 1/3 (not re-readable), "a\"b"
     if type(h) is BVar:
         i = len(names) - 1 - h.index
         return names[i] if 0 <= i < len(names) else f"^{h.index}"

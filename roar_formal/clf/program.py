@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Optional
 
 from .backward import Backward, head_families, prove_premise
+from .builtins import BUILTIN_FAMILIES
 from .context import Context
 from .forward import Choice, Run, Step, enabled_steps, load_positive, successor
 from .parser import parse_file, parse_program
@@ -42,7 +43,8 @@ class Program:
                 continue
             for fam in head_families(info.classifier):
                 self.clauses.setdefault(fam, []).append((info.name, info.classifier))
-        self.backward_families = frozenset(self.clauses)
+        # families whose goals proof search decides: those with clauses, and the built-in ones
+        self.backward_families = frozenset(self.clauses) | BUILTIN_FAMILIES
         self.templates: list[Template] = []
         self.rule_names: list[str] = []
         for info in sig.consts.values():

@@ -14,6 +14,7 @@ from typing import Callable, Optional
 
 from ..errors import QueryError, RoarError
 from .backward import Backward, SearchLimit, show_proof
+from .builtins import BuiltinError
 from .context import Context
 from .printer import show as _show
 from .program import Program
@@ -87,6 +88,8 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
                     break
         except SearchLimit as exc:
             raise QueryError(f"query aborted: {exc}", q.pos) from None
+        except BuiltinError as exc:
+            raise BuiltinError(exc.message, exc.pos or q.pos, exc.notes) from None
         res.solutions += count
         if count == 0:
             emit("No solution.")
@@ -115,7 +118,10 @@ def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[
         res.steps += 1
 
     bound = None if d.steps == "*" else d.steps
-    steps, quiescent = program.run(ctx, bound, seed=seed, fair=fair, on_step=on_step)
+    try:
+        steps, quiescent = program.run(ctx, bound, seed=seed, fair=fair, on_step=on_step)
+    except BuiltinError as exc:
+        raise BuiltinError(exc.message, exc.pos or d.pos, exc.notes) from None
     res.steps = steps
     res.final = ctx
     emit(f"Final context after {steps} step{'s' if steps != 1 else ''}{' (quiescent)' if quiescent else ''}:")

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from ..errors import Pos, UnsupportedError
+from .builtins import BUILTINS
 from .printer import show
 from .terms import (Aff, Bang, BVar, Const, Exists, Imp, Lam, Meta, Monad, Node, One, Pi, Root, Tensor, Top,
                     TypeNode, With, apply, subst)
@@ -138,7 +139,11 @@ class Compiler:
             self._walk(ty.body, env + [s], prem, out, nouter)
         elif tt is Imp:
             dom = ty.dom
-            if type(dom) is Root and (dom.head not in self.backward_families or ty.mode != PERS):
+            # A built-in premise is always decided by the engine (it consumes nothing, so
+            # its mode does not matter); another atom is proved backwards when it is
+            # persistent and its family has clauses, and found in the context otherwise.
+            if type(dom) is Root and dom.head not in BUILTINS and (
+                    dom.head not in self.backward_families or ty.mode != PERS):
                 p = Premise(ty.mode, _conv(dom, env), dom.head)
             else:
                 p = Premise(ty.mode, _conv_type(dom, env, self.alloc), dom.head if type(dom) is Root else None,
@@ -232,8 +237,29 @@ def _metas_bound_by(p: Node, acc: set) -> None:
 
 def _check_determined(t: Template, names: list[str], pos: Optional[Pos]) -> None:
     bound: set = set(range(t.nouter))
-    for p in t.premises:  # premises found in the context bind by matching, proved ones by unification
-        _metas_bound_by(p.pattern, bound)
+    for p in t.premises:  # premises found in the context bind by matching (all are matched first)
+        if not p.backward:
+            _metas_bound_by(p.pattern, bound)
+    for p in t.premises:  # then proved ones, in order: by unification, or a built-in's output
+        if not p.backward:
+            continue
+        bi = BUILTINS.get(p.family)
+        if bi is None:
+            _metas_bound_by(p.pattern, bound)
+            continue
+        args = p.pattern.args
+        for i in range(bi.n_inputs):
+            need: set = set()
+            _metas_bound_by(args[i], need)
+            free = sorted(s for s in need - bound if s < len(names))
+            if free:
+                nm = ", ".join(names[s] for s in free)
+                raise UnsupportedError(
+                    f"in rule '{t.name}': argument {i + 1} of the built-in '{bi.name}' ({nm}) is not "
+                    f"determined by the premises before it; a built-in's inputs must be ground when it "
+                    f"is evaluated (mode {bi.name} {bi.mode})", pos)
+        if bi.output:
+            _metas_bound_by(args[-1], bound)
     used: set = set()
     fresh = {a[1] for a in t.head if a[0] == "fresh"}
     _collect_head(t.head, used)

@@ -17,9 +17,11 @@ from typing import Optional
 
 from ..errors import Pos, TypeError_, UnsupportedError
 from . import surface as S
+from .builtins import BUILTIN_FAMILIES, BUILTIN_TYPES, BUILTINS, is_builtin, kind_of
 from .printer import IMPLICIT, show
-from .terms import (Aff, Bang, Const, EVar, Exists, Imp, Lam, Monad, Node, One, Param, Pi, Root, Tensor,
-                    Top, Type, TypeNode, With, abstract, apply, deref, free_evars, param_term, subst, subst1, zonk)
+from .terms import (NUMBER, STRING, Aff, Bang, Const, EVar, Exists, Imp, Lam, Monad, Node, One, Param, Pi, Root,
+                    Tensor, Top, Type, TypeNode, With, abstract, apply, deref, free_evars, num_term, param_term,
+                    string_term, subst, subst1, zonk)
 from .unify import Unifier
 
 
@@ -34,6 +36,15 @@ class ConstInfo:
     is_family: bool
     pos: Pos
     definition: Optional[Node] = None
+    builtin: bool = False  # predeclared by the built-in domain of numbers and strings
+
+
+_BUILTIN_POS = Pos("<built-in>", 1, 1)
+#: the predeclared families of the built-in domain (``number``, ``string``, tests, functions)
+BUILTIN_INFOS: dict[str, ConstInfo] = {
+    c.name: ConstInfo(c.name, c, Type(), 0, True, _BUILTIN_POS, builtin=True) for c in BUILTIN_TYPES}
+BUILTIN_INFOS.update({
+    b.name: ConstInfo(b.name, b.const, kind_of(b), 0, True, _BUILTIN_POS, builtin=True) for b in BUILTINS.values()})
 
 
 @dataclass
@@ -57,7 +68,10 @@ class ExecDirective:
 
 @dataclass
 class Signature:
-    """Constants in declaration order, plus the directives in program order."""
+    """Constants in declaration order, plus the directives in program order.
+
+    ``consts`` holds the program's own declarations; the families of the built-in
+    domain are predeclared in every signature and found through :meth:`lookup`."""
 
     consts: dict[str, ConstInfo] = field(default_factory=dict)
     directives: list = field(default_factory=list)
@@ -65,7 +79,8 @@ class Signature:
     file: str = "<input>"
 
     def lookup(self, name: str) -> Optional[ConstInfo]:
-        return self.consts.get(name)
+        info = self.consts.get(name)
+        return info if info is not None else BUILTIN_INFOS.get(name)
 
 
 def _is_kind(e: S.Expr) -> bool:
@@ -92,6 +107,9 @@ class Elaborator:
 
     # ------------------------------------------------------------ entry points
     def declare(self, d: S.Decl) -> ConstInfo:
+        if is_builtin(d.name):
+            raise TypeError_(f"'{d.name}' is reserved by the built-in domain of numbers and strings "
+                             "(it is predeclared in every program)", d.pos)
         if d.name in self.sig.consts:
             prev = self.sig.consts[d.name]
             raise TypeError_(f"'{d.name}' is already declared (at {prev.pos})", d.pos)
@@ -110,6 +128,8 @@ class Elaborator:
             else:
                 definition = self.check(d.definition, cls)
         self._solve_postponed(d.pos)
+        if not is_family:
+            _refuse_builtin_conclusion(cls, d.name, d.pos)
         cls, n, definition = self._generalise(cls, d.pos, definition)
         info = ConstInfo(d.name, Const(d.name), cls, n, is_family, d.pos, definition)
         self.sig.consts[d.name] = info
@@ -323,17 +343,28 @@ class Elaborator:
             body = self.pos(e.body)
             return Exists(e.var, dom, self._close_binder(p, body))
         if isinstance(e, S.Bang):
-            return Bang(self.neg(e.body))
+            return Bang(self._fact(e.body))
         if isinstance(e, S.Affine):
-            return Aff(self.neg(e.body))
-        return self.neg(e)
+            return Aff(self._fact(e.body))
+        return self._fact(e)
+
+    def _fact(self, e: S.Expr) -> Node:
+        """A negative type in a positive one: a fact or a rule of a monad or a start context,
+        which may not conclude in a built-in family (the engine decides those)."""
+        ty = self.neg(e)
+        fam = _builtin_conclusion(ty)
+        if fam is not None:
+            raise TypeError_(
+                f"the built-in family '{fam.name}' cannot be a fact or the conclusion of a rule in a monad "
+                "or a start context: it is decided by the engine, and may only be a premise", e.pos)
+        return ty
 
     # ------------------------------------------------------------ atoms
     def atom(self, e: S.Expr) -> Node:
         head, args = _spine(e)
         if not isinstance(head, S.Id):
             raise TypeError_(f"expected a type family at the head of an atomic type, found {_describe(head)}", head.pos)
-        info = self.sig.consts.get(head.name)
+        info = self.sig.lookup(head.name)
         if info is None:
             if self._is_bound(head.name) or _is_upper(head.name):
                 raise TypeError_(f"'{head.name}' is a variable, not a type family (CLF has no type variables)", head.pos)
@@ -392,7 +423,7 @@ class Elaborator:
             for n, p in reversed(self.bound):
                 if n == e.name:
                     return param_term(p), self.ptype[p]
-            info = self.sig.consts.get(e.name)
+            info = self.sig.lookup(e.name)
             if info is not None:
                 if info.is_family:
                     raise TypeError_(f"type family '{e.name}' used as a term", e.pos)
@@ -435,6 +466,12 @@ class Elaborator:
         if isinstance(e, S.Annot):
             ty = self.neg(e.ty)
             return self.check(e.term, ty), ty
+        if isinstance(e, S.Num):
+            return num_term(e.value), Root(NUMBER, ())
+        if isinstance(e, S.One):  # `1` where a term is expected: the number one
+            return num_term(1), Root(NUMBER, ())
+        if isinstance(e, S.Str):
+            return string_term(e.value), Root(STRING, ())
         if isinstance(e, S.Underscore):
             tyv = Root(self._evar("ty", Type()), ())
             return Root(self._evar("_", tyv), ()), tyv
@@ -483,6 +520,32 @@ class Elaborator:
         return term
 
 
+def _builtin_conclusion(ty: Node) -> Optional[Const]:
+    """The built-in family a negative type concludes in (either half of an ``&``), if any."""
+    stack = [ty]
+    while stack:
+        t = stack.pop()
+        tt = type(t)
+        if tt is Pi or tt is Imp:
+            stack.append(t.body)
+        elif tt is With:
+            stack.extend((t.left, t.right))
+        elif tt is Root and t.head in BUILTIN_FAMILIES:
+            return t.head
+    return None
+
+
+def _refuse_builtin_conclusion(cls: Node, name: str, pos: Pos) -> None:
+    fam = _builtin_conclusion(cls)
+    if fam is None:
+        return
+    if fam in BUILTIN_TYPES:
+        raise TypeError_(f"'{name}' cannot be declared of type {fam.name}: the elements of the built-in "
+                         "types number and string are their literals only", pos)
+    raise TypeError_(f"'{name}' would be a clause of the built-in family '{fam.name}', which the engine "
+                     "decides itself: no declaration may conclude in a built-in family", pos)
+
+
 def _spine(e: S.Expr):
     args = []
     while isinstance(e, S.App):
@@ -508,6 +571,8 @@ def _describe(e: S.Expr) -> str:
         S.Tensor: lambda e: "a tensor '*'", S.With: lambda e: "a conjunction '&'", S.Bang: lambda e: "'!'",
         S.Affine: lambda e: "'@'", S.Monad: lambda e: "a monad '{...}'", S.Pair: lambda e: "a pair '<M, N>'",
         S.Proj: lambda e: "a projection", S.Annot: lambda e: "an annotation",
+        S.Num: lambda e: f"the number literal '{e.text or e.value}'",
+        S.Str: lambda e: "a string literal",
     }
     return names.get(type(e), lambda e: type(e).__name__)(e)
 
@@ -524,7 +589,7 @@ def elaborate(program: S.Program) -> Signature:
         elif isinstance(item, S.Exec):
             sig.directives.append(el.exec_(item))
         elif isinstance(item, S.Mode):
-            info = sig.consts.get(item.family)
+            info = sig.lookup(item.family)
             if info is None or not info.is_family:
                 raise TypeError_(f"#mode names '{item.family}', which is not a declared type family", item.pos)
             explicit = _arity(info.classifier) - info.implicit

@@ -8,6 +8,7 @@ its source position so later errors can point at it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from fractions import Fraction
 from typing import Literal, Optional, Union
 
 from ..errors import Pos
@@ -36,7 +37,23 @@ class TypeKw(Node):
 
 @dataclass(frozen=True)
 class One(Node):
-    """The multiplicative unit ``1``."""
+    """The multiplicative unit ``1`` (where a term is expected: the number 1)."""
+
+
+@dataclass(frozen=True)
+class Num(Node):
+    """A number literal (``5``, ``-2.5``; ``1`` alone is read as :class:`One`):
+    its exact value, and the text it was written as (not compared)."""
+
+    value: Fraction
+    text: str = field(default="", compare=False)
+
+
+@dataclass(frozen=True)
+class Str(Node):
+    """A string literal, by its value (escapes resolved)."""
+
+    value: str
 
 
 @dataclass(frozen=True)
@@ -152,7 +169,7 @@ class Annot(Node):
     ty: "Expr"
 
 
-Expr = Union[Id, TypeKw, One, Underscore, App, Lam, Pi, Exists, Arrow, Tensor, With,
+Expr = Union[Id, TypeKw, One, Num, Str, Underscore, App, Lam, Pi, Exists, Arrow, Tensor, With,
              Bang, Affine, Monad, Pair, Proj, Annot]
 
 Bound = Union[int, Literal["*"]]

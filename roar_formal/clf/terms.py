@@ -9,7 +9,9 @@ whether it contains logic variables (``evars``) or pattern slots (``metas``),
 so substitution skips closed subterms without walking them.
 
 Terms: ``Root(head, args)`` (head a :class:`Const`, :class:`Param`,
-:class:`BVar`, :class:`EVar` or :class:`Meta`) and ``Lam(body)``.
+:class:`BVar`, :class:`EVar`, :class:`Meta` or :class:`Lit`) and ``Lam(body)``.
+A literal of the built-in domain (a number or a string) is ``Root(Lit(...), ())``:
+interned by value, so ``3.0`` and ``3`` are the same term.
 Types: ``Root`` with a family head (atoms), ``Pi``, ``Imp`` (``->``, ``-o``,
 ``-@``), ``With``, ``Top``, ``Monad``; positive types ``Tensor``, ``One``,
 ``Exists``, ``Bang``, ``Aff``; kinds ``Type`` (and ``Pi``/``Imp`` over it).
@@ -18,6 +20,8 @@ Types: ``Root`` with a family head (atoms), ``Pi``, ``Imp`` (``->``, ``-o``,
 from __future__ import annotations
 
 import itertools
+from decimal import Decimal
+from fractions import Fraction
 
 # ---------------------------------------------------------------- heads
 
@@ -42,6 +46,33 @@ class Const(Head):
 
     def __repr__(self) -> str:
         return self.name
+
+
+class Lit(Head):
+    """A literal of the built-in domain: an exact rational number or a string.
+
+    Interned by (kind, value), so two literals are the same head exactly when
+    they denote the same value (``Fraction(3) == Fraction("3.0")``), and a
+    literal term ``Root(lit, ())`` is hash-consed like any constant. ``family``
+    is the literal's type (``number`` or ``string``), ``text`` its printed form.
+    """
+
+    __slots__ = ("value", "family", "text")
+    _table: dict[tuple, "Lit"] = {}
+
+    def __new__(cls, value, family: "Const", text: str) -> "Lit":
+        key = (family.name, value)
+        c = cls._table.get(key)
+        if c is None:
+            c = object.__new__(cls)
+            c.value = value
+            c.family = family
+            c.text = text
+            cls._table[key] = c
+        return c
+
+    def __repr__(self) -> str:
+        return self.text
 
 
 _param_ids = itertools.count(1)
@@ -378,6 +409,98 @@ def bvar(i: int) -> Root:
 
 def param_term(p: Param) -> Root:
     return Root(p, ())
+
+
+# ---------------------------------------------------------------- literals
+
+NUMBER = Const("number")
+STRING = Const("string")
+
+
+def format_number(q: Fraction) -> str:
+    """``5``, ``-1`` for integers; the shortest exact decimal (``0.1``, ``-2.5``) when
+    the denominator has no prime factor but 2 and 5; ``1/3`` otherwise (not re-readable)."""
+    n, d = q.numerator, q.denominator
+    if d == 1:
+        return str(n)
+    twos = fives = 0
+    r = d
+    while r % 2 == 0:
+        r //= 2
+        twos += 1
+    while r % 5 == 0:
+        r //= 5
+        fives += 1
+    if r != 1:
+        return f"{n}/{d}"
+    k = max(twos, fives)
+    digits = str(abs(n) * 10 ** k // d).rjust(k + 1, "0")
+    return ("-" if n < 0 else "") + digits[:-k] + "." + digits[-k:]
+
+
+_ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\t": "\\t"}
+
+
+def format_string(s: str) -> str:
+    """A string literal as written: quoted, with backslash, double quote, newline
+    and tab escaped (``\\\\``, ``\\"``, ``\\n``, ``\\t``)."""
+    return '"' + "".join(_ESCAPES.get(c, c) for c in s) + '"'
+
+
+def to_fraction(x) -> Fraction:
+    """An exact rational from an int, Fraction, Decimal or numeric string (``"2.5"``, ``"1/3"``).
+    Floats are refused: they are not exact."""
+    if isinstance(x, bool) or isinstance(x, float):
+        raise TypeError(f"a number literal needs an exact value (int, Fraction, Decimal or str), not {x!r}")
+    if isinstance(x, Fraction):
+        return x
+    if isinstance(x, (int, Decimal)):
+        return Fraction(x)
+    if isinstance(x, str):
+        try:
+            return Fraction(x.strip())
+        except (ValueError, ZeroDivisionError):
+            raise ValueError(f"not a number: {x!r}") from None
+    raise TypeError(f"a number literal needs an int, Fraction, Decimal or str, not {type(x).__name__}")
+
+
+_lits = Lit._table
+
+
+def num_term(x) -> "Root":
+    """The literal term of type ``number`` for ``x`` (int, Fraction, Decimal or str)."""
+    q = x if type(x) is Fraction else to_fraction(x)
+    lit = _lits.get(("number", q))
+    if lit is None:
+        lit = Lit(q, NUMBER, format_number(q))
+    return Root(lit, ())
+
+
+def string_term(s: str) -> "Root":
+    """The literal term of type ``string`` for ``s``."""
+    if not isinstance(s, str):
+        raise TypeError(f"a string literal needs a str, not {type(s).__name__}")
+    lit = _lits.get(("string", s))
+    if lit is None:
+        lit = Lit(s, STRING, format_string(s))
+    return Root(lit, ())
+
+
+def num_value(t: Node):
+    """The value of a number literal (a Fraction), or None when ``t`` is not one
+    (logic variables are followed)."""
+    t = deref(t)
+    if type(t) is Root and type(t.head) is Lit and t.head.family is NUMBER:
+        return t.head.value
+    return None
+
+
+def string_value(t: Node):
+    """The value of a string literal (a str), or None when ``t`` is not one."""
+    t = deref(t)
+    if type(t) is Root and type(t.head) is Lit and t.head.family is STRING:
+        return t.head.value
+    return None
 
 
 def deref(t: Node) -> Node:

@@ -114,10 +114,12 @@ class CompiledModel:
     csts: dict[str, tuple[str, str]] = field(default_factory=dict)       # const -> (agent, predicate text)
     functions: dict[str, tuple[Optional[str], str]] = field(default_factory=dict)  # const -> (owner, name)
     fn_types: dict[str, str] = field(default_factory=dict)               # const -> result type
+    fn_params: dict[str, list] = field(default_factory=dict)             # const -> parameter types
     sites: dict[str, Site] = field(default_factory=dict)
     request_cst: str = ""
     request_agent: str = ""
     structs: dict[str, list[str]] = field(default_factory=dict)          # type -> field names
+    field_types: dict[str, dict[str, str]] = field(default_factory=dict)
     functional: str = "abstract"
 
     def program(self):
@@ -170,8 +172,8 @@ class _Ctx:
     def envpat(self) -> str:
         """The locals with the values hoisted for this statement on top (popped by its rule)."""
         pat = "E"
-        for _ in range(self.pushed):
-            pat = f"(vcons _ {pat})"
+        for i in range(self.pushed):
+            pat = f"(vcons H{i + 1} {pat})"
         return pat
 
 
@@ -288,8 +290,8 @@ class _Compiler:
         s = self.site("run-task", cx.agent, cx.task, cx.recipe, pos, f"read {owner.name}::{var} (runs {task})")
         self.rules.append(
             f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go -o act I R0 T0 Rc0 N\n"
-            f"  -o {{Exists r. ctl I (m_make r) C E * rstat I go * act I R0 T0 Rc0 (s N) * owns I r\n"
-            f"      * rq r a_{owner.name} {run_c} I (k_task {tc}) * rs r s_pending\n"
+            f"  -o {{Exists r. ctl I (m_make r) C E * rstat I go * act I R0 T0 Rc0 (s N) * owns I r ff\n"
+            f"      * rq r a_{owner.name} {run_c} I (k_task {tc}) * rs r s_pending * ppz r ff\n"
             f"      * hs r (h_tasks (vcons (vtsk {tc}) vnil)) vnil vnil vnil vnone}}.")
         cx.hoisted.append(s)
 
@@ -310,6 +312,7 @@ class _Compiler:
         args = [self.pexp(x, sub) for x in e.args]
         fc = self.fn_c(owner, e.name)
         self.model.fn_types[fc] = result_ty
+        self.model.fn_params[fc] = list(self.chk.fn_sigs.get((owner, e.name), (None, []))[1] or [])
         self.pending_fns[fc] = (owner, e.name, result_ty)
         s = self.site("call", cx.agent, cx.task, cx.recipe, e.pos, format_expr(e), function=e.qualified)
         prem, outs = self.premises(sub)
@@ -476,7 +479,7 @@ class _Compiler:
             self.send(ag, st, cx, s, head)
         elif isinstance(st, a.Abort):
             k = env.index(st.handle)
-            self.rules.append(f"{head} -o act I R0 T0 Rc0 (s N) -o !nth E {nat(k)} (vreq R) -o owns I R\n"
+            self.rules.append(f"{head} -o act I R0 T0 Rc0 (s N) -o !nth E {nat(k)} (vreq R) -o owns I R _\n"
                               f"  -o {{ctl I m_run C E * rstat I go * act I R0 T0 Rc0 N * abortreq R}}.")
         else:  # wait, assert
             cond = self.pexp(st.cond, cx)
@@ -531,7 +534,7 @@ class _Compiler:
         E = cx.envpat()
         evals = "".join(f" -o !peval vnil {E} vnil {p} {w}" for p, w in zip(wvals, names))
         kind = "make" if isinstance(st, a.Make) else "ensure"
-        req = (f"rq r a_{target} {cst} I k_{kind} * rs r s_sent * owns I r"
+        req = (f"rq r a_{target} {cst} I k_{kind} * rs r s_sent * ppz r ff * owns I r ff"
                f" * hs r h_select vnil vnil vnil (vsome {self._list(names)})")
         if kind == "make":
             ctl = "ctl I (m_make r) C E"
@@ -590,7 +593,7 @@ class _Compiler:
     def compile(self, request: a.Constraint) -> CompiledModel:
         spec, m = self.spec, self.model
         self.where_cells: dict[str, list[str]] = {}
-        self.field_types: dict[str, dict[str, str]] = {}
+        self.field_types = m.field_types
         for ag in spec.agents:
             for td in ag.types:
                 if isinstance(td, a.StructType):
@@ -618,6 +621,7 @@ class _Compiler:
                     rc = self.recipe_c(ag.name, t.name, r.name)
                     m.recipes[rc] = (ag.name, t.name, r.name)
                     o.append(f"{rc} : recipe.")
+        hdr = len(o)   # constraint declarations go here (they are known at the end)
         # tasks: pre/post (symbolic), recipes
         for ag in spec.agents:
             for t in ag.tasks:
@@ -652,16 +656,17 @@ class _Compiler:
         for v in writes.values():
             wvals.append(self.const_value(v))
         # constraints: identities, predicates, select and final rules
+        decls = []
         for i, (c, (target, _)) in enumerate(sorted(m.csts.items()), start=1):
-            o.append(f"{c} : cst.")
-            o.append(f"id_{c} : cst_id {c} {i}.")
+            decls.append(f"{c} : cst.")
+            decls.append(f"id_{c} : cst_id {c} {i}.")
+        decls += [f"{fc} : fn." for fc in sorted(m.functions)]
+        o[hdr:hdr] = decls
         for c in sorted(self.cst_pexp):
             self.constraint_rules(c)
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
         o.extend("st" + r[2:] if r.startswith("pp") else r for r in self.rules)
         # functions and outcomes
-        for fc, (owner, name) in sorted(m.functions.items()):
-            o.append(f"{fc} : fn.")
         if self.functional == "abstract":
             for fc, (owner, name, rty) in sorted(self.pending_fns.items()):
                 o.extend(self.outcome_rules(fc, owner, name, rty))
@@ -672,7 +677,7 @@ class _Compiler:
             for v in ag.vars:
                 c = self.cell(ag.name, v.name)
                 init.append(f"contains {c} {self.initial(ag, v)}")
-        init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * rs r0 s_sent"
+        init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * rs r0 s_sent * ppz r0 ff"
                     f" * hs r0 h_select vnil vnil vnil (vsome {self._list(wvals)})")
         m.init = "Exists r0. " + " * ".join(init)
         o.append(f"\n#exec * {m.init}.")

@@ -150,7 +150,11 @@ class _Values:
         self.opaque.append(v)
         return const("vopq", num_term(len(self.opaque)))
 
-    def python(self, t):
+    def python(self, t, ty: Optional[str] = None):
+        """The Python value of a term; a struct of a known type is a dict by field name."""
+        if ty in self.model.structs and isinstance(t.head, Const) and t.head.name == "vrec":
+            return {n: self.python(x, self.model.field_types.get(ty, {}).get(n))
+                    for n, x in zip(self.model.structs[ty], _items(t.args[0]))}
         v = value_of(t)
         if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque" and 1 <= v[1] <= len(self.opaque):
             return self.opaque[v[1] - 1]
@@ -201,7 +205,8 @@ class _Resolver:
                     o = next((o for o in outcomes if not o.success), Outcome("failure", False))
                 return self._outcome(o, rty), f"fault: {o.name}"
         if prim is not None and prim.fn is not None:
-            py = [self.values.python(x) for x in args]
+            tys = self.model.fn_params.get(fc, [])
+            py = [self.values.python(x, tys[i] if i < len(tys) else None) for i, x in enumerate(args)]
             try:
                 v = prim(*py)
             except RoarError:
@@ -304,6 +309,29 @@ class _Narrator:
                 agent, text = self.req_info.get(lab, ("?", "?"))
                 out.append(RoarEvent(i, "state", agent, f"{lab} {STATE_NAMES.get(self._name(f.args[1]))} -> aborted"
                                      f"  ({text})", {"request": lab, "to": "aborted"}))
+        # aborts sent, concurrency issues
+        for f in by("abortreq", prod):
+            lab = self.label(f.args[0])
+            agent, text = self.req_info.get(lab, ("?", "?"))
+            site = m.sites.get(_site_of(rule))
+            who = site.agent if site else (self.acts.get(_first_arg(consumed, "fin"), ("?",))[0])
+            out.append(RoarEvent(i, "abort", who, f"abort {lab} ({agent}: {text})", {"request": lab}))
+        if rule == "concurrency_issue":
+            for f in by("cres", prod):
+                lab, held = self.label(f.args[0]), self.label(f.args[1])
+                agent, text = self.req_info.get(lab, ("?", "?"))
+                out.append(RoarEvent(i, "conflict", agent, f"{lab} ({text}) conflicts with {held}, which holds "
+                                     f"the task it needs: asking the calling context of {held}",
+                                     {"request": lab, "holder": held}))
+        if rule in ("ask_alternative", "ask_caller", "no_alternative"):
+            for f in by("cres", consumed):
+                lab, at = self.label(f.args[0]), self.label(f.args[1])
+                agent = self.req_info.get(at, ("?",))[0]
+                verdict = {"ask_alternative": "has an alternative: it reconfigures",
+                           "ask_caller": "has no alternative: asking its caller",
+                           "no_alternative": "is a request from outside: the conflict cannot be resolved"}[rule]
+                out.append(RoarEvent(i, "calling-context", agent, f"for {lab}: the emitter of {at} {verdict}",
+                                     {"request": lab, "at": at}))
         # tasks chosen
         if rule == "tasks_chosen":
             for f in by("hs", prod):
@@ -340,7 +368,7 @@ class _Narrator:
             if f.args[1] in self.calls:
                 agent, call = self.calls.pop(f.args[1])
                 out.append(RoarEvent(i, "primitive-end", agent, f"{call} = {_show_value(f.args[0])}",
-                                     {"value": str(value_of(f.args[0]))}))
+                                     {"value": _show_value(f.args[0])}))
         for f in by("callfail", consumed):
             if f.args[0] in self.calls:
                 agent, call = self.calls.pop(f.args[0])
@@ -356,7 +384,7 @@ class _Narrator:
                 if cell in m.cells:
                     agent, var = m.cells[cell]
                     out.append(RoarEvent(i, "write", agent, f"{agent}::{var} = {_show_value(f.args[1])}",
-                                         {"var": f"{agent}::{var}", "value": str(value_of(f.args[1]))}))
+                                         {"var": f"{agent}::{var}", "value": _show_value(f.args[1])}))
         # pause / resume of an activation
         if rule in ("pause", "paused", "continue", "continued"):
             for f in by("rstat", prod):
@@ -366,6 +394,13 @@ class _Narrator:
                 out.append(RoarEvent(i, kind, who[0], f"recipe {who[2]} {'resumed' if kind == 'resume' else 'paused'}",
                                      {"recipe": who[2]}))
         return out
+
+
+def _first_arg(facts, fam):
+    for f in facts:
+        if isinstance(f.head, Const) and f.head.name == fam:
+            return f.args[0]
+    return None
 
 
 def _site_of(rule: str) -> str:
@@ -390,13 +425,21 @@ def _reason(t, m) -> str:
 
 
 def _show_value(t) -> str:
-    v = value_of(t)
+    return format_value(value_of(t))
+
+
+def format_value(v) -> str:
+    """A Python value as the spec language writes it (structs as (a, b))."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, Fraction):
-        return str(float(v))
+        return f"{float(v):g}"
     if isinstance(v, str):
-        return repr(v)
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque":
+        return f"<opaque {v[1]}>"
+    if isinstance(v, (tuple, list)):
+        return "(" + ", ".join(format_value(x) for x in v) + ")"
     return str(v)
 
 

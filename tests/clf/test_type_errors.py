@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from roar_formal.cli import main
+from roar_formal.clf.builtins import BuiltinError
 from roar_formal.clf.program import Program
 from roar_formal.clf.query import run_directives, with_big_stack
 from roar_formal.errors import QueryError, RoarError, TypeError_, UnsupportedError
@@ -65,8 +66,10 @@ def test_type_error_library(path):
     assert fragment in err.format()
     if path.stem == "query_count":
         assert isinstance(err, QueryError)
-    elif path.stem == "undetermined_pi":
+    elif path.stem.startswith("undetermined_"):
         assert isinstance(err, UnsupportedError)
+    elif path.stem == "builtin_not_ground":
+        assert isinstance(err, BuiltinError)
     else:
         assert isinstance(err, TypeError_)
 

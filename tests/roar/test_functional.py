@@ -140,7 +140,7 @@ def test_demo_loco_needs_no_binding_and_mana_nav_does():
     assert Registry().resolve(load_spec(MODELS / "demo_loco")).functions == {}
     spec = load_spec(MODELS / "mana_nav.roar")
     reg = Registry()
-    for name, fn in {"grab": lambda: object(), "lidar_ok": lambda: True, "fuse": lambda c, v: v + 1,
+    for name, fn in {"grab": lambda: object(), "lidar_ok": lambda: True, "sonar_ok": lambda: True, "fuse": lambda c, v: v + 1,
                      "mk_point": lambda x, y: (x, y), "distance": lambda p, q: 0.0,
                      "astar": lambda v, g: [g], "straight": lambda g: [g], "odom": lambda: (0.0, 0.0),
                      "follow": lambda t: True}.items():
