@@ -534,8 +534,9 @@ class _Compiler:
         E = cx.envpat()
         evals = "".join(f" -o !peval vnil {E} vnil {p} {w}" for p, w in zip(wvals, names))
         kind = "make" if isinstance(st, a.Make) else "ensure"
+        pairs = self._list([f"(vpair (vcell {c}) {w})" for c, w in zip(cells, names)])
         req = (f"rq r a_{target} {cst} I k_{kind} * rs r s_sent * ppz r ff * owns I r ff"
-               f" * hs r h_select vnil vnil vnil (vsome {self._list(names)})")
+               f" * hs r h_select vnil vnil vnil (vsome {pairs})")
         if kind == "make":
             ctl = "ctl I (m_make r) C E"
         else:
@@ -678,7 +679,7 @@ class _Compiler:
                 c = self.cell(ag.name, v.name)
                 init.append(f"contains {c} {self.initial(ag, v)}")
         init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * rs r0 s_sent * ppz r0 ff"
-                    f" * hs r0 h_select vnil vnil vnil (vsome {self._list(wvals)})")
+                    f" * hs r0 h_select vnil vnil vnil (vsome {self._list([f'(vpair (vcell {c}) {v})' for c, v in zip(cells, wvals)])})")
         m.init = "Exists r0. " + " * ".join(init)
         o.append(f"\n#exec * {m.init}.")
         body = "\n".join(o)
@@ -740,16 +741,15 @@ class _Compiler:
             return self._list([f"(vpair (vcell {cell}) {values[cell]})" for cell in cells])
         reads = "".join(f" -o contains {cell} {v}" for cell, v in vars_.items())
         back = "".join(f" * contains {cell} {v}" for cell, v in vars_.items())
-        # first selection: the where values are written, then the logic layer decides
+        # first selection: the logic layer decides with the where values in place of the
+        # variables they write; an accepted constraint writes them (framework: where_write)
         newv = dict(vars_)
         newv.update(wvars)
-        wl = self._list([wvars[w] for w in where])
-        first_reads = reads
-        first_back = "".join(f" * contains {cell} {newv[cell]}" for cell in cells)
+        wl = self._list([f"(vpair (vcell {w}) {wvars[w]})" for w in where])
         self.rules.append(
-            f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{first_reads}\n"
+            f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
             f"  -o !mtasks M MT -o !decide {pred_p} {snap(newv)} F MT D\n"
-            f"  -o {{hs R (h_dec D) EC F Pl vnone * rs R s_pending * {rq} * mask a_{tag.name} M{first_back}}}.")
+            f"  -o {{hs R (h_dec D) EC F Pl (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M{back}}}.")
         self.rules.append(
             f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
             f"  -o !mtasks M MT -o !decide {pred_p} {snap(vars_)} F MT D\n"

@@ -367,8 +367,9 @@ class _Narrator:
         for f in by("return", consumed):
             if f.args[1] in self.calls:
                 agent, call = self.calls.pop(f.args[1])
-                out.append(RoarEvent(i, "primitive-end", agent, f"{call} = {_show_value(f.args[0])}",
-                                     {"value": _show_value(f.args[0])}))
+                dropped = " (dropped: the recipe was stopped)" if rule == "drop_result" else ""
+                out.append(RoarEvent(i, "primitive-end", agent, f"{call} = {_show_value(f.args[0])}{dropped}",
+                                     {"value": _show_value(f.args[0]), "dropped": bool(dropped)}))
         for f in by("callfail", consumed):
             if f.args[0] in self.calls:
                 agent, call = self.calls.pop(f.args[0])
@@ -454,6 +455,10 @@ def describe_ec(t, m: CompiledModel) -> list[str]:
         elif h == "vtsk":
             agent, task = m.tasks.get(x.args[0].head.name, ("?", "?"))
             out.append(f"task failed: {agent}::{task}")
+        elif h == "vconf":
+            agent, task = m.tasks.get(x.args[0].head.name, ("?", "?"))
+            out.append(f"concurrency: task {agent}::{task} is held by another constraint, and no agent of "
+                       f"its calling context has an alternative")
         elif h == "vsite":
             s = m.sites.get(x.args[0].head.name)
             out.append(f"local failure: {s.agent}.{s.task}.{s.recipe} at {s.pos.line}:{s.pos.col}: {s.text}"
