@@ -35,9 +35,10 @@ def _root() -> None:
 def _register_all() -> None:
     from .clf import commands as clf_commands
     from .explore import commands as explore_commands
+    from .roar import commands as roar_commands
     from .tca import commands as tca_commands
 
-    for module in (clf_commands, explore_commands, tca_commands):
+    for module in (clf_commands, roar_commands, explore_commands, tca_commands):
         module.register(app)
 
 

@@ -84,6 +84,7 @@ class RunResult:
     final: dict[str, object]   # agent::var -> value (Python)
     requests: dict[str, str]   # label -> "agent: predicate"
     ctx: object = None
+    external: dict = field(default_factory=dict)   # step -> (pending fact, answer): functional-layer steps
 
     @property
     def ok(self) -> bool:
@@ -335,7 +336,8 @@ class _Narrator:
         # tasks chosen
         if rule == "tasks_chosen":
             for f in by("hs", prod):
-                ts = [m.tasks[self._name(x.args[0])][1] for x in _items(f.args[1].args[0])]
+                ph = f.args[1]   # h_write (vsome Tasks)
+                ts = [m.tasks[self._name(x.args[0])][1] for x in _items(ph.args[0].args[0])]
                 lab = self.label(f.args[0])
                 agent = self.req_info.get(lab, ("?",))[0]
                 out.append(RoarEvent(i, "tasks", agent, f"{lab}: tasks {' then '.join(ts)}",
@@ -483,6 +485,7 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     narrator = _Narrator(model)
     steps: list = []
     events: list[RoarEvent] = []
+    external: dict = {}   # step number -> (pending fact, answer fact): the functional layer's steps
 
     def on_step(step, _ctx):
         i = len(steps) + 1
@@ -513,8 +516,9 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             fc, args, d = f.args[0].head.name, _items(f.args[1]), f.args[2]
             result, how = resolver.answer(fc, args)
             ans = const("return", result, d) if result is not None else const("callfail", d)
-            step = runner.external([(f)], [ans], rule=f"functional_layer")
+            step = runner.external([f], [ans], rule="functional_layer")
             on_step(step, ctx)
+            external[len(steps)] = (f, ans)
         if max_steps and runner.steps >= max_steps:
             quiescent = False
             break
@@ -522,7 +526,9 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     if unused:
         names = ", ".join(str(f) for f in unused)
         raise RoarError(f"--fault {names}: no such call happened in this run (check the name and the call number)")
-    return _result(model, ctx, steps, events, quiescent, narrator)
+    res = _result(model, ctx, steps, events, quiescent, narrator)
+    res.external = external
+    return res
 
 
 def _result(model, ctx, steps, events, quiescent, narrator) -> RunResult:

@@ -1,0 +1,174 @@
+"""``roar-verify run SPEC --request ...`` and ``roar-verify compile SPEC --request ...``."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from ..errors import RoarError
+
+_KIND_STYLE = {
+    "sent": "cyan", "state": "bold", "tasks": "magenta", "recipe": "magenta", "recipe-end": "magenta",
+    "primitive-start": "blue", "primitive-end": "blue", "write": "green", "pause": "yellow",
+    "resume": "yellow", "abort": "yellow", "conflict": "red", "calling-context": "red",
+}
+
+
+def functional_module(spec_path: Path, given: Optional[Path]) -> Optional[Path]:
+    """The functional-layer module of a spec: ``--functional FILE``, else ``SPEC.py`` next to a
+    ``.roar`` file, else ``functional.py`` inside (or ``NAME.py`` next to) a hyper folder."""
+    if given is not None:
+        if not given.is_file():
+            raise RoarError(f"{given}: no such functional-layer module")
+        return given
+    spec_path = Path(spec_path)
+    candidates = []
+    if spec_path.is_dir():
+        candidates = [spec_path / "functional.py", spec_path.with_suffix(".py")]
+    else:
+        candidates = [spec_path.with_suffix(".py")]
+        if spec_path.suffix == ".ability":
+            candidates.append(spec_path.parent / "functional.py")
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def load_registry(path: Optional[Path]):
+    """Import a functional-layer module and build its registry (``registry()``, or ``REGISTRY``)."""
+    if path is None:
+        return None
+    name = f"roar_functional_{abs(hash(str(path.resolve())))}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise RoarError(f"{path}: cannot be imported as a Python module")
+    mod = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as exc:
+        raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
+    make = getattr(mod, "registry", None)
+    if callable(make):
+        reg = make()
+    else:
+        reg = getattr(mod, "REGISTRY", None)
+    from .functional import Registry
+    if not isinstance(reg, Registry):
+        raise RoarError(f"{path}: a functional-layer module defines registry() returning a Registry "
+                        f"(roar_formal.roar.functional.Registry)")
+    return reg
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("run")
+    def run(
+        spec: Path = typer.Argument(..., help="A spec: a .roar file, a hyper .ability file, or a hyper folder."),
+        request: str = typer.Option(..., "--request", "-r",
+                                    help="The constraint to enforce, e.g. 'loco::pos == loco::goal where loco::goal == 5'."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the committed-choice scheduler."),
+        fault: list[str] = typer.Option([], "--fault",
+                                        help="Make a primitive fail: NAME (every call), NAME:K (its K-th call) "
+                                             "or NAME=OUTCOME (a declared outcome). Repeatable."),
+        functional: Optional[Path] = typer.Option(None, "--functional",
+                                                  help="Functional-layer module (default: SPEC.py next to the spec)."),
+        max_steps: int = typer.Option(100_000, "--max-steps", help="Stop after this many CLF steps."),
+        trace: Optional[Path] = typer.Option(None, "--trace", help="Write the JSON Lines trace here."),
+        fair: bool = typer.Option(False, "--fair", help="Fair round-robin scheduling instead of seeded random."),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the CLF rule of each event."),
+        as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+    ) -> None:
+        """Run SPEC on a request to quiescence and print the ROAR-level trace.
+
+        Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
+        """
+        from .compile import compile_spec
+        from .parser import load_spec
+        from .run import parse_fault, run_model
+        faults = [parse_fault(f) for f in fault]
+        spec_ast = load_spec(spec)
+        reg = load_registry(functional_module(spec, functional))
+        model = compile_spec(spec_ast, request, registry=reg, functional="python")
+        console = Console(highlight=False)
+        if not as_json:
+            console.print(f"[bold]{escape(str(spec))}[/]: request [cyan]{escape(request)}[/]"
+                          + (f", faults {escape(', '.join(fault))}" if fault else "") + f", seed {seed}")
+
+        res = run_model(model, seed=seed, max_steps=max_steps, registry=reg, faults=faults, fair=fair)
+        rules = [s[0] for s in res.steps]
+        if not as_json:
+            for ev in res.events:
+                style = _KIND_STYLE.get(ev.kind, "default")
+                rule = f"  [dim]({escape(rules[ev.step - 1])})[/]" if verbose else ""
+                console.print(f"[dim]{ev.step:>5}[/] {escape(ev.agent):<12} [{style}]{escape(ev.text)}[/]{rule}",
+                              soft_wrap=True)
+        if trace is not None:
+            write_run_trace(trace, res, spec, request, seed, fault)
+        if as_json:
+            print(json.dumps({"spec": str(spec), "request": request, "seed": seed, "faults": fault,
+                              "outcome": res.outcome, "quiescent": res.quiescent, "clf_steps": len(res.steps),
+                              "error_context": res.error_context, "final": {k: _jsonable(v) for k, v in res.final.items()},
+                              "events": [dict(step=e.step, **e.as_json()) for e in res.events]}, indent=2))
+        else:
+            style = "green" if res.ok else "red"
+            end = "quiescent" if res.quiescent else f"stopped after {max_steps} steps"
+            console.print(f"[{style}]request {res.outcome}[/] after {len(res.steps)} CLF steps ({end})")
+            for line in res.error_context:
+                console.print(f"  error context: {escape(line)}")
+            if trace is not None:
+                console.print(f"trace written to {escape(str(trace))}")
+        if not res.ok:
+            raise typer.Exit(1)
+
+    @app.command("compile")
+    def compile_cmd(
+        spec: Path = typer.Argument(..., help="A spec: a .roar file, a hyper .ability file, or a hyper folder."),
+        request: str = typer.Option(..., "--request", "-r", help="The constraint to enforce."),
+        output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the CLF program here (default: stdout)."),
+        functional: Optional[Path] = typer.Option(None, "--functional", help="Functional-layer module (for outcomes)."),
+    ) -> None:
+        """Print the CLF program a spec and a request compile to (framework included).
+
+        Primitives become their declared outcome rules, so `roar-verify clf` runs the result.
+        """
+        from ..trace.format import write_atomic
+        from .compile import compile_spec
+        from .parser import load_spec
+        reg = load_registry(functional_module(spec, functional))
+        model = compile_spec(load_spec(spec), request, registry=reg, functional="abstract")
+        if output is None:
+            sys.stdout.write(model.text)
+        else:
+            if output.exists() and output.resolve() == Path(spec).resolve():
+                raise RoarError(f"{output}: refusing to overwrite the spec itself")
+            write_atomic(output, model.text)
+
+
+def _jsonable(v):
+    from fractions import Fraction
+    if isinstance(v, Fraction):
+        return float(v)
+    if isinstance(v, tuple):
+        return [_jsonable(x) for x in v]
+    return v
+
+
+def write_run_trace(path: Path, res, spec, request: str, seed: int, faults) -> None:
+    """The run as a JSON Lines trace (trace/format.py): one line per CLF step, with its ROAR events."""
+    from ..trace.format import write_trace
+    by_step: dict[int, list] = {}
+    for e in res.events:
+        by_step.setdefault(e.step, []).append(e.as_json())
+    steps = []
+    for i, (rule, consumed, produced) in enumerate(res.steps, 1):
+        evs = by_step.get(i)
+        steps.append({"rule": rule, "consumed": consumed, "produced": produced,
+                      "event": (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None,
+                      "loop": False})
+    header = {"kind": "roar-run", "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
+              "outcome": res.outcome, "requests": res.requests}
+    write_trace(path, header, steps)
