@@ -54,7 +54,12 @@ def load_registry(path: Optional[Path]):
         raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
     make = getattr(mod, "registry", None)
     if callable(make):
-        reg = make()
+        try:
+            reg = make()
+        except RoarError:
+            raise
+        except Exception as exc:
+            raise RoarError(f"{path}: registry() failed: {type(exc).__name__}: {exc}") from None
     else:
         reg = getattr(mod, "REGISTRY", None)
     from .functional import Registry
@@ -107,7 +112,7 @@ def register(app: typer.Typer) -> None:
                 console.print(f"[dim]{ev.step:>5}[/] {escape(ev.agent):<12} [{style}]{escape(ev.text)}[/]{rule}",
                               soft_wrap=True)
         if trace is not None:
-            write_run_trace(trace, res, spec, request, seed, fault)
+            _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault))
         if as_json:
             print(json.dumps({"spec": str(spec), "request": request, "seed": seed, "faults": fault,
                               "outcome": res.outcome, "quiescent": res.quiescent, "clf_steps": len(res.steps),
@@ -138,14 +143,27 @@ def register(app: typer.Typer) -> None:
         from ..trace.format import write_atomic
         from .compile import compile_spec
         from .parser import load_spec
+        from .ast import walk
         reg = load_registry(functional_module(spec, functional))
-        model = compile_spec(load_spec(spec), request, registry=reg, functional="abstract")
+        spec_ast = load_spec(spec)
+        model = compile_spec(spec_ast, request, registry=reg, functional="abstract")
         if output is None:
             sys.stdout.write(model.text)
         else:
             if output.exists() and output.resolve() == Path(spec).resolve():
                 raise RoarError(f"{output}: refusing to overwrite the spec itself")
-            write_atomic(output, model.text)
+            sources = {Path(f).resolve() for f in {n.pos.file for n in walk(spec_ast)} if Path(f).is_file()}
+            if output.resolve() in sources:
+                raise RoarError(f"{output}: refusing to overwrite a file of the spec")
+            _writing(output, lambda: write_atomic(output, model.text))
+
+
+def _writing(path: Path, write) -> None:
+    """Run ``write``; a file that cannot be written is the user's error (exit 2), not ours."""
+    try:
+        write()
+    except OSError as exc:
+        raise RoarError(f"{path}: cannot write: {exc.strerror or exc}") from None
 
 
 def _jsonable(v):

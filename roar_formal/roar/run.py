@@ -25,7 +25,7 @@ from ..clf.forward import Run
 from ..clf.printer import show
 from ..clf.terms import Const, Root, const, num_term, num_value, string_term, string_value
 from ..errors import RoarError
-from .compile import CompiledModel
+from .compile import CompiledModel, num_lit
 from .functional import Outcome, Registry
 
 __all__ = ["Fault", "RoarEvent", "RunResult", "run_model", "parse_fault", "value_of"]
@@ -435,8 +435,11 @@ def format_value(v) -> str:
     """A Python value as the spec language writes it (structs as (a, b))."""
     if isinstance(v, bool):
         return "true" if v else "false"
-    if isinstance(v, Fraction):
-        return f"{float(v):g}"
+    if isinstance(v, Fraction):   # exact when it has a decimal form (1234.5678, not 1234.57)
+        try:
+            return num_lit(v)
+        except RoarError:
+            return repr(float(v))
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque":
