@@ -21,8 +21,8 @@ from .builtins import BUILTINS, BuiltinError, evaluate, input_values
 from .context import Context
 from .forward import Run, inst, load_positive, match
 from .rules import AFF, LIN, PERS, positive_parts
-from .terms import (NUMBER, Aff, Bang, EVar, Imp, Lit, Monad, Node, Param, Pi, Root, Top, With, deref, num_term,
-                    param_term, string_term, subst1, zonk)
+from .terms import (NUMBER, Aff, Bang, Const, EVar, Imp, Lit, Monad, Node, Param, Pi, Root, Top, With, deref, num_term,
+                    param_term, string_term, subst, subst1, zonk)
 from .unify import Unifier
 
 
@@ -180,7 +180,10 @@ class Backward:
                 self._use(h)
             yield from self._clause(h.ty, goal, floor, aff_ok, h.name)
             self._undo(mark, hmark)
-        for name, ty in self.program.clauses.get(fam, ()):
+        args = goal.args
+        for name, ty, skel in self.program.indexed_clauses(fam):
+            if skel is not None and not _fits(skel, args):
+                continue   # the clause's head cannot unify with the goal (first-argument indexing, generalised)
             mark, hmark = self.u.mark(), len(self.htrail)
             yield from self._clause(ty, goal, floor, aff_ok, name)
             self._undo(mark, hmark)
@@ -200,6 +203,26 @@ class Backward:
         self.u.undo(mark)
 
     def _clause(self, ty: Node, goal: Root, floor: int, aff_ok: bool, head: str) -> Iterator[tuple]:
+        # the common shape, Pi xs. A1 -> ... -> An -> head, is instantiated with one substitution
+        # per premise and one for the head (not one pass over the whole type per binder)
+        evs: list = []
+        raw: list = []
+        t = ty
+        while True:
+            tt = type(t)
+            if tt is Pi:
+                evs.append(Root(EVar(t.hint, subst(t.dom, evs[::-1]) if evs else t.dom), ()))
+                t = t.body
+            elif tt is Imp:
+                raw.append((t.mode, t.dom, len(evs)))
+                t = t.body
+            else:
+                break
+        if type(t) is Root:
+            rev = evs[::-1]
+            prems = [(m, subst(d, rev[len(rev) - k:]) if k else d) for m, d, k in raw]
+            yield from self._clause_rest(subst(t, rev) if evs else t, prems, goal, floor, aff_ok, head)
+            return
         prems: list[tuple[str, Node]] = []
         while True:
             tt = type(ty)
@@ -348,6 +371,53 @@ class Backward:
 
         for used in go(0):
             yield [(m, t) for m, t, _ in used]
+
+
+_SKEL_DEPTH = 3
+
+
+def clause_skeleton(ty: Node):
+    """The rigid part of a clause's head, for filtering clauses before instantiating them.
+
+    A tuple with one entry per head argument: ``(head, args)`` for a constant or a
+    literal (``args`` None below the depth limit), None for anything that could
+    unify with more than one head (a bound variable, a lambda). None for a clause
+    with an ``&`` (two heads)."""
+    while True:
+        tt = type(ty)
+        if tt is Pi or tt is Imp:
+            ty = ty.body
+        elif tt is Root:
+            return tuple(_skel(a, _SKEL_DEPTH) for a in ty.args)
+        else:
+            return None
+
+
+def _skel(t: Node, depth: int):
+    if type(t) is not Root or not isinstance(t.head, (Const, Lit)):
+        return None
+    if depth == 0 or not t.args:
+        return (t.head, None)
+    return (t.head, tuple(_skel(a, depth - 1) for a in t.args))
+
+
+def _fits(skel: tuple, args: tuple) -> bool:
+    for sk, a in zip(skel, args):
+        if sk is None:
+            continue
+        a = deref(a)
+        if type(a) is not Root:
+            continue
+        h = a.head
+        if isinstance(h, (Const, Lit)):
+            if h is not sk[0]:
+                return False
+            sub = sk[1]
+            if sub is not None and len(sub) == len(a.args) and not _fits(sub, a.args):
+                return False
+        elif isinstance(h, Param):
+            return False   # a fresh name unifies with no constant
+    return True
 
 
 def head_families(ty: Node) -> set:

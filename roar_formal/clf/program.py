@@ -56,6 +56,15 @@ class Program:
         self._ctx_cache: dict = {}
         self.implicit = {info.const: info.implicit for info in sig.consts.values()}
 
+    def indexed_clauses(self, fam) -> list:
+        """The clauses of ``fam`` with their head skeletons (backward.clause_skeleton), cached."""
+        cache = self.__dict__.setdefault("_indexed", {})
+        out = cache.get(fam)
+        if out is None:
+            from .backward import clause_skeleton
+            out = cache[fam] = [(name, ty, clause_skeleton(ty)) for name, ty in self.clauses.get(fam, ())]
+        return out
+
     # ---------------------------------------------------------- loading
     @classmethod
     def from_file(cls, path: str | Path) -> "Program":

@@ -26,7 +26,7 @@ from ..trace.format import write_trace
 from .graph import StateGraph
 from .ground import GroundExplorer, GroundModel, NotGround
 from .jobs import Job
-from .properties import Verdict, check_deadlock, check_livelock
+from .properties import check_states, Verdict, check_deadlock, check_livelock
 from .search import Budget, Explorer, rss_mb
 from .system import ClfSystem, Options
 
@@ -80,7 +80,86 @@ def make_accept(program: Program, text: str, where: str) -> Callable[[Context], 
 
 
 def run_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
+    if job.is_roar:
+        return with_big_stack(_run_roar_job, job, on_progress)
     return with_big_stack(_run_job, job, on_progress)
+
+
+def _run_roar_job(job: Job, on_progress) -> JobResult:
+    """A job on a ROAR spec: the compiled model explored with primitives as their outcomes,
+    weak fairness per agent, requests reaching a final state as progress (by default)."""
+    from ..roar.commands import functional_module, load_registry
+    from ..roar.compile import compile_spec
+    from ..roar.explore import PROGRESS_RULES, RoarSystem, roar_final, sequential_pairs
+    from ..roar.parser import load_spec
+    t0 = time.perf_counter()
+    reg = load_registry(functional_module(job.spec, job.functional))
+    model = compile_spec(load_spec(job.spec), job.request, registry=reg, functional="abstract")
+    program = model.program()
+    start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
+    start = program.start_context(start_d.start)
+    props = job.props
+    options = Options(progress_rules=tuple(props.progress) or PROGRESS_RULES, fairness="agent",
+                      canonical=job.canonical)
+    pairs = []
+    if "sequential-achievement" in props.check:
+        pairs = [p for p in sequential_pairs(model) if not props.sequence_recipes or p.where in props.sequence_recipes]
+        missing = set(props.sequence_recipes) - {p.where for p in sequential_pairs(model)}
+        if missing:
+            raise RoarError(f"{job.path}: [sequential-achievement] names recipes with no 'make A; make B' pair: "
+                            f"{', '.join(sorted(missing))}")
+    reduction = "off"
+    if job.reduction:
+        if set(props.check) <= {"deadlock"}:
+            reduction = "on"
+            options.reduction = True
+        else:
+            reduction = "off (deadlock only)"
+    system = RoarSystem(model, start, options, pairs)
+    explorer = Explorer(system, job.search, on_progress)
+    accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
+                             "[deadlock] accept") if props.accept else roar_final
+    limit = job.budget.max_states
+    k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
+    while True:
+        remaining = None
+        if job.budget.max_seconds is not None:
+            remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
+        graph = explorer.run(Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb))
+        states = explorer.states
+        verdicts: dict[str, Verdict] = {}
+        for p in props.check:
+            if p == "deadlock":
+                verdicts[p] = check_deadlock(graph, lambda sid: accept_ctx(states[sid]))
+            elif p == "livelock":
+                verdicts[p] = check_livelock(graph)
+            elif p == "sequential-achievement":
+                def bad(sid):
+                    pair = system.violates_sequence(states[sid])
+                    return (f"in {pair.where}, a command of the subtree of '{pair.b_text}' started before every "
+                            f"command of the subtree of '{pair.a_text}' ended") if pair else None
+                verdicts[p] = check_states(graph, p, bad)
+            elif p == "exclusive-writes":
+                def bad(sid):
+                    w = system.shared_write(states[sid])
+                    return (f"{w[0]} is written by the where clauses of two live constraints: "
+                            f"{' and '.join(w[1])}") if w else None
+                verdicts[p] = check_states(graph, p, bad)
+        if graph.complete or all(v.violated for v in verdicts.values()):
+            break
+        if "state budget" not in graph.stop_reason or (limit is not None and k >= limit):
+            break
+        k = k * 4 if limit is None else min(k * 4, limit)
+    if job.reduction:
+        for v in verdicts.values():
+            v.message += " (partial-order reduction)" if reduction == "on" else f" (reduction {reduction})"
+            v.details["reduction"] = reduction
+    mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
+                  if verdicts[p].status != want]
+    res = JobResult(job, verdicts, graph, "general", time.perf_counter() - t0, rss_mb(), mismatches, program,
+                    reduction)
+    res.roar = (model, start, explorer)
+    return res
 
 
 def _run_job(job: Job, on_progress) -> JobResult:
@@ -160,16 +239,35 @@ def _row_context(model: GroundModel, row) -> Context:
 # ---------------------------------------------------------------- counterexamples
 
 
-def counterexample_steps(graph: StateGraph, verdict: Verdict) -> list[dict]:
-    """The counterexample as trace records (ROAR-level events are added by the ROAR layer)."""
+def roar_events(result: JobResult, verdict: Verdict) -> Optional[list]:
+    """The ROAR-level events of a counterexample (jobs on a spec), per step: a list of event lists."""
+    roar = getattr(result, "roar", None)
+    if roar is None or verdict.counterexample is None:
+        return None
+    from ..roar.explore import path_events
+    model, start, explorer = roar
     cx = verdict.counterexample
+    edges = list(cx.prefix) + list(cx.cycle)
+    events = path_events(model, start, [explorer.steps[e] for e in edges])
+    per_step: list = [[] for _ in edges]
+    for ev in events:
+        per_step[ev.step - 1].append(ev)
+    return per_step
+
+
+def counterexample_steps(graph: StateGraph, verdict: Verdict, result: Optional[JobResult] = None) -> list[dict]:
+    """The counterexample as trace records, with the ROAR-level events of jobs on a spec."""
+    cx = verdict.counterexample
+    events = roar_events(result, verdict) if result is not None else None
     out = []
     for loop, edges in ((False, cx.prefix), (True, cx.cycle)):
         for e in edges:
             rec = graph.describe_edge(e) if graph.describe_edge else {"rule": graph.labels.names[graph.label[e]]}
             rec = dict(rec)
             rec["group"] = graph.groups.names[int(graph.group[e])]
-            rec["event"] = None
+            evs = events[len(out)] if events is not None else []
+            rec["event"] = (evs[0].as_json() if len(evs) == 1 else
+                            {"kind": "several", "events": [x.as_json() for x in evs]}) if evs else None
             rec["loop"] = loop
             out.append(rec)
     return out
@@ -177,11 +275,15 @@ def counterexample_steps(graph: StateGraph, verdict: Verdict) -> list[dict]:
 
 def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
     v = result.verdicts[prop]
-    steps = counterexample_steps(result.graph, v)
+    steps = counterexample_steps(result.graph, v, result)
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in result.job.name)
     path = folder / f"{safe}.{prop}.jsonl"
-    header = {"kind": "counterexample", "property": prop, "model": str(result.job.model),
-              "start": result.job.start, "job": str(result.job.path), "shape": v.counterexample.kind,
+    job = result.job
+    where = ({"spec": str(job.spec), "request": job.request,
+              "functional": str(job.functional) if job.functional else None} if job.is_roar
+             else {"model": str(job.model), "start": job.start})
+    header = {"kind": "counterexample", "property": prop, **where,
+              "job": str(result.job.path), "shape": v.counterexample.kind,
               "final_state": result.graph.describe_state(v.counterexample.final_state)
               if result.graph.describe_state else []}
     write_trace(path, header, steps)

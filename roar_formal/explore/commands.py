@@ -102,23 +102,58 @@ def _print_result(console: Console, res, verbose: bool) -> None:
 
 
 def _print_cx(console: Console, res, prop: str, verbose: bool) -> None:
-    from .check import counterexample_steps
+    from .check import counterexample_steps, roar_events
 
     v = res.verdicts[prop]
-    steps = counterexample_steps(res.graph, v)
+    steps = counterexample_steps(res.graph, v, res)
+    events = roar_events(res, v)
     for i, s in enumerate(steps, 1):
         if s["loop"] and (i == 1 or not steps[i - 2]["loop"]):
             console.print("    [yellow]-- cycle (repeats forever) --[/]")
+        if events is not None:
+            # ROAR level: one line per event; the CLF rule of its step with --verbose
+            for ev in events[i - 1]:
+                rule = f"  [dim]({escape(s['rule'])})[/]" if verbose else ""
+                console.print(f"    {i:>3}. {escape(ev.agent):<12} {escape(ev.text)}{rule}")
+            if verbose and not events[i - 1]:
+                console.print(f"    {i:>3}. [dim]\\[{escape(s['group'])}] {escape(s['rule'])}[/]")
+            continue
         line = f"    {i:>3}. \\[{escape(s['group'])}] {escape(s['rule'])}"
         if verbose:
             line += f"  {escape(', '.join(s.get('consumed', [])))} -> {escape(', '.join(s.get('produced', [])))}"
         console.print(line)
     if v.counterexample.kind == "path" and res.graph.describe_state:
         final = res.graph.describe_state(v.counterexample.final_state)
+        if events is not None and not verbose:
+            final = _roar_state(res, v.counterexample.final_state)
         console.print("    final state: " + escape("; ".join(x for x in final if not x.startswith("!"))))
     saved = getattr(res, "saved", {}).get(prop)
     if saved:
         console.print(f"    trace: {escape(str(saved))}  (roar-verify replay {escape(str(saved))})")
+
+
+def _roar_state(res, sid: int) -> list[str]:
+    """The final state of a ROAR counterexample, briefly: requests and their states, waiting recipes."""
+    from ..clf.printer import show
+    model, _start, explorer = res.roar
+    ctx = explorer.states[sid]
+    out = []
+    rq = {}
+    for _m, f, _n in ctx.facts():
+        h = getattr(f.head, "name", None)
+        if h == "rq":
+            rq[f.args[0]] = model.csts.get(f.args[2].head.name, ("?", "?"))
+    for _m, f, _n in ctx.facts():
+        h = getattr(f.head, "name", None)
+        if h == "rs" and f.args[0] in rq:
+            agent, text = rq[f.args[0]]
+            out.append(f"{agent}: {text} is {f.args[1].head.name[2:]}")
+        elif h == "act":
+            agent, task, recipe = model.recipes.get(f.args[3].head.name, ("?", "?", "?"))
+            out.append(f"{agent}: recipe {recipe} of task {task} is live")
+        elif h == "ctl" and getattr(f.args[1].head, "name", "") == "m_block":
+            out.append(f"a recipe waits in {show(f.args[2].args[0]) if f.args[2].args else '?'}")
+    return sorted(out)
 
 
 def _summary(console: Console, results) -> None:
@@ -148,14 +183,15 @@ def _summary(console: Console, results) -> None:
 def _json(r) -> dict:
     from .check import counterexample_steps
 
-    out = {"job": r.job.name, "file": str(r.job.path), "model": str(r.job.model), "ok": r.ok,
+    out = {"job": r.job.name, "file": str(r.job.path), "model": str(r.job.model if not r.job.is_roar else r.job.spec),
+           "ok": r.ok,
            "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states, "transitions": r.graph.n_edges,
            "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4), "memory_mb": round(r.memory_mb, 1),
            "mismatches": r.mismatches, "verdicts": {}}
     for p, v in r.verdicts.items():
         d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
         if v.counterexample is not None:
-            d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v)}
+            d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r)}
             saved = getattr(r, "saved", {}).get(p)
             if saved:
                 d["trace"] = str(saved)

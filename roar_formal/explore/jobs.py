@@ -18,7 +18,9 @@ from typing import Any, Optional
 from ..errors import Pos, RoarError
 from .search import Budget
 
-PROPERTIES = ("deadlock", "livelock")
+PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes")
+#: properties that read ROAR events or state: only for jobs on a spec
+ROAR_PROPERTIES = ("sequential-achievement", "exclusive-writes")
 STATUSES = ("holds", "violated")
 
 
@@ -31,13 +33,15 @@ class PropertySpec:
     fairness: str = "first-argument"
     accept: Optional[str] = None  # a positive CLF type: quiescent states matching it are final
     sources: list[str] = field(default_factory=list)
+    fairness_given: bool = False
+    sequence_recipes: list[str] = field(default_factory=list)   # agent.task.recipe; empty: every recipe
 
 
 @dataclass
 class Job:
     path: Path
     name: str
-    model: Path
+    model: Optional[Path]
     start: int = 1
     props: PropertySpec = field(default_factory=PropertySpec)
     expect: dict[str, str] = field(default_factory=dict)
@@ -46,6 +50,13 @@ class Job:
     search: str = "bfs"
     canonical: bool = True
     reduction: bool = False  # partial-order reduction (general backend, deadlock only)
+    spec: Optional[Path] = None        # a ROAR spec (instead of a .clf model)
+    request: Optional[str] = None      # the request the spec is run on
+    functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
+
+    @property
+    def is_roar(self) -> bool:
+        return self.spec is not None
 
 
 def _load_toml(path: Path) -> dict:
@@ -94,7 +105,7 @@ def _typed(d: dict, key: str, ty, path: Path, what: str) -> Any:
 def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
     spec = into or PropertySpec()
     d = _load_toml(path)
-    _expect_keys(d, {"description", "check", "livelock", "deadlock"}, "a property file", path)
+    _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement"}, "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
@@ -113,6 +124,16 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                 raise RoarError(f"fairness must be 'first-argument', 'rule' or 'none', not '{f}'",
                                 Pos(str(path), _line_of(path, "fairness"), 1))
             spec.fairness = f
+            spec.fairness_given = True
+    if "sequential-achievement" in d:
+        sa = _typed(d, "sequential-achievement", dict, path, "a property file")
+        _expect_keys(sa, {"recipes"}, "[sequential-achievement]", path)
+        if "recipes" in sa:
+            for r in _typed(sa, "recipes", list, path, "[sequential-achievement]"):
+                if not isinstance(r, str) or r.count(".") != 2:
+                    raise RoarError(f"[sequential-achievement] recipes are named 'agent.task.recipe', not {r!r}",
+                                    Pos(str(path), _line_of(path, "recipes"), 1))
+                spec.sequence_recipes.append(r)
     if "deadlock" in d:
         dl = _typed(d, "deadlock", dict, path, "a property file")
         _expect_keys(dl, {"accept"}, "[deadlock]", path)
@@ -125,14 +146,32 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
 def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
-    _expect_keys(d, {"name", "model", "start", "properties", "backend", "search", "canonical", "reduction", "bounds",
-                     "expect"},
+    _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
+                     "canonical", "reduction", "bounds", "expect"},
                  "a job file", path)
-    if "model" not in d:
-        raise RoarError("a job needs 'model = \"path/to/model.clf\"'", Pos(str(path), 1, 1))
     base = path.parent
-    model = (base / _typed(d, "model", str, path, "a job file")).resolve()
-    job = Job(path=path, name=str(d.get("name", path.stem)), model=model)
+    if "spec" in d:
+        if "model" in d:
+            raise RoarError("a job names either 'model' (a .clf program) or 'spec' (a ROAR spec), not both",
+                            Pos(str(path), _line_of(path, "model"), 1))
+        if "request" not in d:
+            raise RoarError("a job on a spec needs 'request = \"agent::var == value ...\"'",
+                            Pos(str(path), _line_of(path, "spec"), 1))
+        spec = (base / _typed(d, "spec", str, path, "a job file")).resolve()
+        job = Job(path=path, name=str(d.get("name", path.stem)), model=None, spec=spec,
+                  request=_typed(d, "request", str, path, "a job file"))
+        if "functional" in d:
+            job.functional = (base / _typed(d, "functional", str, path, "a job file")).resolve()
+    else:
+        if "model" not in d:
+            raise RoarError("a job needs 'model = \"path/to/model.clf\"' or 'spec = \"path/to/spec.roar\"' "
+                            "with a 'request'", Pos(str(path), 1, 1))
+        for k in ("request", "functional"):
+            if k in d:
+                raise RoarError(f"'{k}' belongs to a job on a spec ('spec = ...'), not on a .clf model",
+                                Pos(str(path), _line_of(path, k), 1))
+        model = (base / _typed(d, "model", str, path, "a job file")).resolve()
+        job = Job(path=path, name=str(d.get("name", path.stem)), model=model)
     if "start" in d:
         job.start = _typed(d, "start", int, path, "a job file")
         if job.start < 1:
@@ -173,6 +212,11 @@ def load_job(path: str | Path) -> Job:
             job.expect[k] = v
             if k not in job.props.check:
                 job.props.check.append(k)
+    if not job.is_roar:
+        for p in job.props.check:
+            if p in ROAR_PROPERTIES:
+                raise RoarError(f"property '{p}' reads ROAR events: it needs a job on a spec ('spec = ...')",
+                                Pos(str(path), 1, 1))
     if not job.props.check:
         raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
                         Pos(str(path), 1, 1))

@@ -57,6 +57,22 @@ def _incomplete(prop: str, g: StateGraph) -> Verdict:
                    f"no {prop} in {g.n_states:,} states; search incomplete ({g.stop_reason})")
 
 
+# ---------------------------------------------------------------- state properties
+
+
+def check_states(g: StateGraph, prop: str, bad: Callable[[int], Optional[str]]) -> Verdict:
+    """A safety property read on states: the shortest path to a state ``bad`` describes
+    (it returns the reason, or None for a good state)."""
+    for s in range(g.n_states):  # ids follow discovery order: breadth-first depth is non-decreasing
+        why = bad(s)
+        if why:
+            cx = Counterexample("path", g.path_to(s), final_state=s)
+            return Verdict(prop, "violated", f"{why} (reached in {len(cx.prefix)} steps)", cx, {"reason": why})
+    if not g.complete:
+        return _incomplete(prop, g)
+    return Verdict(prop, "holds", f"no violation in {g.n_states:,} states")
+
+
 # ---------------------------------------------------------------- deadlock
 
 

@@ -121,6 +121,7 @@ class CompiledModel:
     structs: dict[str, list[str]] = field(default_factory=dict)          # type -> field names
     field_types: dict[str, dict[str, str]] = field(default_factory=dict)
     functional: str = "abstract"
+    where_cells: dict[str, list[str]] = field(default_factory=dict)      # cst -> cells its where clause writes
 
     def program(self):
         """The CLF program (cached)."""
@@ -438,7 +439,8 @@ class _Compiler:
             self.chk.stmt(st, sc)   # keep the checker's scope in step (types of locals)
         return code
 
-    def stmt(self, ag: a.Agent, task: a.Task, r: a.Recipe, st: a.Stmt, env: list[str], sc: _Scope) -> list[str]:
+    def stmt(self, ag: a.Agent, task: a.Task, r: a.Recipe, st: a.Stmt, env: list[str], sc: _Scope,
+             kind_name: Optional[str] = None) -> list[str]:
         cx = _Ctx(self, ag, env, sc, task=task.name, recipe=r.name)
         text = format_stmt(st)
         kind = {a.Set: "set", a.Let: "let", a.ExprStmt: "expr", a.Make: "make", a.Ensure: "ensure",
@@ -459,7 +461,7 @@ class _Compiler:
         if isinstance(st, (a.Make, a.Ensure)):
             c = st.constraint
             site_kw["cst"] = self.cst_for(ag, c.expr, c.target(ag.name))
-        s = self.site(kind, ag, task.name, r.name, st.pos, text, **site_kw)
+        s = self.site(kind_name or kind, ag, task.name, r.name, st.pos, text, **site_kw)
         E = cx.envpat()
         head = f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go"
         if isinstance(st, a.Set):
@@ -548,7 +550,17 @@ class _Compiler:
     def recipe(self, ag: a.Agent, t: a.Task, r: a.Recipe) -> None:
         o = self.out
         rc = self.recipe_c(ag.name, t.name, r.name)
-        body = self.block(ag, t, r, r.body, self.chk.scope(ag).fresh())
+        sc = self.chk.scope(ag).fresh()
+        body = self.block(ag, t, r, r.body, sc)
+        # the recipe's and the task's post-conditions are checked when the body is done:
+        # a violated one fails the recipe with its reason (a local failure)
+        for e, whose in [(e, "recipe") for e in r.post] + [(e, "task") for e in t.post]:
+            for conj in a.conjuncts(e):
+                sites = self.stmt(ag, t, r, a.Assert(conj, None, pos=conj.pos), [], self.chk.scope(ag).fresh(),
+                                  kind_name="post")
+                site = self.model.sites[sites[-1]]
+                site.text = f"post-condition of {whose} {t.name if whose == 'task' else r.name}: {format_expr(conj)}"
+                body += sites
         end = self.block(ag, t, r, r.end, self.chk.scope(ag).fresh())
         end_code = end + ["s_done"]
         o.append(f"body_{rc} : bodycode {rc} {self._code(body + ['s_end'] + end_code)}.")
@@ -593,7 +605,7 @@ class _Compiler:
     # ------------------------------------------------------------ the whole spec
     def compile(self, request: a.Constraint) -> CompiledModel:
         spec, m = self.spec, self.model
-        self.where_cells: dict[str, list[str]] = {}
+        self.where_cells: dict[str, list[str]] = m.where_cells
         self.field_types = m.field_types
         for ag in spec.agents:
             for td in ag.types:
@@ -748,12 +760,12 @@ class _Compiler:
         wl = self._list([f"(vpair (vcell {w}) {wvars[w]})" for w in where])
         self.rules.append(
             f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide {pred_p} {snap(newv)} F MT D\n"
-            f"  -o {{hs R (h_dec D) EC F Pl (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M{back}}}.")
+            f"  -o !mtasks M MT -o !decide {pred_p} {snap(newv)} F MT D -o !commit D R M M1\n"
+            f"  -o {{hs R (h_dec D) EC F Pl (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide {pred_p} {snap(vars_)} F MT D\n"
-            f"  -o {{hs R (h_dec D) EC F Pl vnone * {rq} * mask a_{tag.name} M{back}}}.")
+            f"  -o !mtasks M MT -o !decide {pred_p} {snap(vars_)} F MT D -o !commit D R M M1\n"
+            f"  -o {{hs R (h_dec D) EC F Pl vnone * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
             f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"

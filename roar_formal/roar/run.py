@@ -204,7 +204,7 @@ class _Resolver:
                                         f"(its outcomes: {', '.join(o.name for o in outcomes) or 'none declared'})")
                 else:
                     o = next((o for o in outcomes if not o.success), Outcome("failure", False))
-                return self._outcome(o, rty), f"fault: {o.name}"
+                return self._outcome(o, rty), f"fault: {o.name}", o.writes
         if prim is not None and prim.fn is not None:
             tys = self.model.fn_params.get(fc, [])
             py = [self.values.python(x, tys[i] if i < len(tys) else None) for i, x in enumerate(args)]
@@ -213,12 +213,12 @@ class _Resolver:
             except RoarError:
                 raise
             except Exception as exc:  # the functional layer failed: a primitive failure
-                return None, f"raised {type(exc).__name__}: {exc}"
+                return None, f"raised {type(exc).__name__}: {exc}", {}
             if rty is None or v is None and rty != "bool":
-                return const("vunit"), "done"
-            return self.values.term(v, rty), "returned"
+                return const("vunit"), "done", {}
+            return self.values.term(v, rty), "returned", {}
         o = next((o for o in outcomes if o.success), outcomes[0] if outcomes else Outcome("success", True))
-        return self._outcome(o, rty), o.name
+        return self._outcome(o, rty), o.name, o.writes
 
     def _outcome(self, o: Outcome, rty: Optional[str]):
         if o.result is not None:
@@ -517,9 +517,18 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
         # answer the oldest call first (all pending calls were made while the rest waited)
         for f in calls:
             fc, args, d = f.args[0].head.name, _items(f.args[1]), f.args[2]
-            result, how = resolver.answer(fc, args)
+            result, how, writes = resolver.answer(fc, args)
             ans = const("return", result, d) if result is not None else const("callfail", d)
-            step = runner.external([f], [ans], rule="functional_layer")
+            eaten, made = [f], [ans]
+            owner = model.functions[fc][0]
+            for var, value in writes.items():   # an outcome's writes (declared, or forced by a fault)
+                agent, _, name = var.rpartition("::")
+                cell = f"v_{agent or owner}_{name}"
+                old = next((g for g in _cells(ctx, cell)), None)
+                if old is not None:
+                    eaten.append(old)
+                    made.append(const("contains", old.args[0], values.term(value, model.cell_types.get(cell))))
+            step = runner.external(eaten, made, rule="functional_layer")
             on_step(step, ctx)
             external[len(steps)] = (f, ans)
         if max_steps and runner.steps >= max_steps:
@@ -532,6 +541,13 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     res = _result(model, ctx, steps, events, quiescent, narrator)
     res.external = external
     return res
+
+
+def _cells(ctx, cell: str):
+    bag = ctx.index.get(Const("contains"))
+    for f in (bag.items if bag else ()):
+        if f.args[0].head.name == cell:
+            yield f
 
 
 def _result(model, ctx, steps, events, quiescent, narrator) -> RunResult:

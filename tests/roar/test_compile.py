@@ -54,7 +54,7 @@ def compiled(name: str):
 # ------------------------------------------------------------------ (a) sites and rules
 
 SITE = re.compile(r"pp(\d+)_([a-z_]+)")
-KINDS = {"set", "let", "make", "ensure", "wait", "assert", "abort", "call", "run-task", "pre", "expr"}
+KINDS = {"set", "let", "make", "ensure", "wait", "assert", "abort", "call", "run-task", "pre", "expr", "post"}
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -78,7 +78,7 @@ def test_every_site_has_its_rule(name):
     # waits and asserts have their false branch; waits on plain variables a wake-up rule
     for const, site in model.sites.items():
         n, kind = SITE.fullmatch(const).groups()
-        if kind in ("wait", "assert"):
+        if kind in ("wait", "assert", "post"):
             assert f"st{n}_{kind}_false" in rules
 
 
