@@ -151,8 +151,17 @@ def _roar_state(res, sid: int) -> list[str]:
         elif h == "act":
             agent, task, recipe = model.recipes.get(f.args[3].head.name, ("?", "?", "?"))
             out.append(f"{agent}: recipe {recipe} of task {task} is live")
-        elif h == "ctl" and getattr(f.args[1].head, "name", "") == "m_block":
-            out.append(f"a recipe waits in {show(f.args[2].args[0]) if f.args[2].args else '?'}")
+        elif h == "ctl":
+            mode = getattr(f.args[1].head, "name", "")
+            site = model.sites.get(getattr(f.args[2].args[0].head, "name", "")) if f.args[2].args else None
+            where = f"{site.agent}.{site.task}.{site.recipe} at {site.pos.line}:{site.pos.col} ({site.text})" \
+                if site else "a recipe"
+            if mode == "m_block":
+                out.append(f"{where}: blocked until a variable it reads changes")
+            elif mode == "m_make":
+                out.append(f"{where.split(' at ')[0]}: waiting for a make")
+            elif mode == "m_call":
+                out.append(f"{where.split(' at ')[0]}: waiting for a primitive")
     return sorted(out)
 
 

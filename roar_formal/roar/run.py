@@ -315,7 +315,7 @@ class _Narrator:
             lab = self.label(f.args[0])
             agent, text = self.req_info.get(lab, ("?", "?"))
             site = m.sites.get(_site_of(rule))
-            who = site.agent if site else (self.acts.get(_first_arg(consumed, "fin"), ("?",))[0])
+            who = site.agent if site else (self.acts.get(_first_arg(consumed, "act"), ("?",))[0])
             out.append(RoarEvent(i, "abort", who, f"abort {lab} ({agent}: {text})", {"request": lab}))
         if rule == "concurrency_issue":
             for f in by("cres", prod):
@@ -343,8 +343,9 @@ class _Narrator:
                 out.append(RoarEvent(i, "tasks", agent, f"{lab}: tasks {' then '.join(ts)}",
                                      {"request": lab, "tasks": ts}))
         # recipe chosen / ended
+        old_insts = {g.args[0] for g in by("act", consumed)}
         for f in by("act", prod):
-            if not by("act", consumed):
+            if f.args[0] not in old_insts:
                 agent, task, recipe = m.recipes[self._name(f.args[3])]
                 self.acts[f.args[0]] = (agent, task, recipe)
                 lab = self.label(f.args[1])
@@ -388,14 +389,17 @@ class _Narrator:
                     agent, var = m.cells[cell]
                     out.append(RoarEvent(i, "write", agent, f"{agent}::{var} = {_show_value(f.args[1])}",
                                          {"var": f"{agent}::{var}", "value": _show_value(f.args[1])}))
-        # pause / resume of an activation
-        if rule in ("pause", "paused", "continue", "continued"):
-            for f in by("rstat", prod):
-                who = self.acts.get(f.args[0], ("?", "?", "?"))
-                z = self._name(f.args[1])
-                kind = "resume" if z == "go" else "pause"
-                out.append(RoarEvent(i, kind, who[0], f"recipe {who[2]} {'resumed' if kind == 'resume' else 'paused'}",
-                                     {"recipe": who[2]}))
+        # pause / resume of an activation (its pause state goes from go to paused or back)
+        before_z = {f.args[0]: self._name(f.args[1]) for f in by("rstat", consumed)}
+        for f in by("rstat", prod):
+            i_ = f.args[0]
+            was, now = before_z.get(i_), self._name(f.args[1])
+            if was is None or (was == "go") == (now == "go") or rule.startswith("kill"):
+                continue
+            who = self.acts.get(i_, ("?", "?", "?"))
+            kind = "resume" if now == "go" else "pause"
+            out.append(RoarEvent(i, kind, who[0], f"recipe {who[2]} {'resumed' if kind == 'resume' else 'paused'}",
+                                 {"recipe": who[2]}))
         return out
 
 

@@ -34,10 +34,21 @@ class ReplayResult:
 def replay(path: str | Path, on_step: Optional[Callable[[int, dict, Context], None]] = None,
            model: Optional[str] = None) -> ReplayResult:
     header, steps = read_trace(path)
-    model_path = model or header.get("model")
-    if not model_path:
-        raise RoarError(f"{path}: the trace names no model; pass --model")
-    program = Program.from_file(model_path)
+    if header.get("spec") and not model:
+        # a counterexample of a job on a ROAR spec: compile the spec as the explorer did
+        from ..roar.commands import functional_module, load_registry
+        from ..roar.compile import compile_spec
+        from ..roar.parser import load_spec
+        spec = Path(header["spec"])
+        fn = header.get("functional")
+        reg = load_registry(functional_module(spec, Path(fn) if fn else None))
+        program = compile_spec(load_spec(spec), header.get("request", ""), registry=reg,
+                               functional="abstract").program()
+    else:
+        model_path = model or header.get("model")
+        if not model_path:
+            raise RoarError(f"{path}: the trace names no model; pass --model")
+        program = Program.from_file(model_path)
     execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
     start_index = int(header.get("start", 1))
     if start_index > len(execs):
