@@ -1,6 +1,8 @@
 """B4: partial-order reduction (stubborn sets) on the general backend.
 
-For each model with a general-backend start state: the dining philosophers
+For each model with a general-backend start state: compiled ROAR models
+(the seeded faulty models and their fixes, demo_loco; deadlock against ROAR
+final states, agents as processes), the dining philosophers
 (N = 4, 5, variants dl/ok/ll), every ``#exec`` start of ``models/clf/*.clf``
 whose state space is finite (explored completely within a small budget), and
 k independent three-step processes: states, transitions and search time with
@@ -37,31 +39,64 @@ def independent(k: int) -> str:
             + "#exec * " + " * ".join(f"a q{i}" for i in range(k)) + ".\n")
 
 
-def _explore(program, start, reduction: bool, budget):
+def _explore(program, start, reduction: bool, budget, roar=None):
+    """Explore with or without reduction; ``roar`` (a compiled ROAR model) uses the ROAR
+    system (agents as groups) and ROAR final states for the deadlock verdict."""
     from roar_formal.explore.properties import check_deadlock
     from roar_formal.explore.search import Explorer
     from roar_formal.explore.system import ClfSystem, Options
 
-    ex = Explorer(ClfSystem(program, start, Options(reduction=reduction)))
+    if roar is not None:
+        from roar_formal.roar.explore import PROGRESS_RULES, RoarSystem, roar_final
+        system = RoarSystem(roar, start, Options(progress_rules=PROGRESS_RULES, reduction=reduction))
+    else:
+        system = ClfSystem(program, start, Options(reduction=reduction))
+    ex = Explorer(system)
     t0 = time.perf_counter()
     g = ex.run(budget)
     dt = time.perf_counter() - t0
-    return g, dt, check_deadlock(g).status
+    accept = (lambda sid: roar_final(ex.states[sid])) if roar is not None else None
+    return g, dt, check_deadlock(g, accept).status
+
+
+ROAR_CASES = [("faulty/mutual_make.roar", "arm::started == true", None),
+              ("faulty/mutual_make_fixed.roar", "arm::started == true", None),
+              ("faulty/retry_bounded.roar", "hand::holding == true", None),
+              ("faulty/ordered_pick.roar", "cell::done == true", "faulty/reliable_tools.py"),
+              ("faulty/ordered_pick_fixed.roar", "cell::done == true", "faulty/reliable_tools.py"),
+              ("demo_loco", "demo_loco::pos == demo_loco::goal where demo_loco::goal == 5", None)]
+
+
+def _roar_cases():
+    """Compiled ROAR models (functional layer as outcome rules), with their start states."""
+    from roar_formal.clf.signature import ExecDirective
+    from roar_formal.roar.commands import functional_module, load_registry
+    from roar_formal.roar.compile import compile_spec
+    from roar_formal.roar.parser import load_spec
+
+    for spec, request, fn in ROAR_CASES:
+        path = ROOT / "models" / spec
+        reg = load_registry(functional_module(path, ROOT / "models" / fn if fn else None))
+        model = compile_spec(load_spec(path), request, registry=reg, functional="abstract")
+        p = model.program()
+        start = next(d for d in p.sig.directives if isinstance(d, ExecDirective)).start
+        yield f"roar {spec}", p, p.start_context(start), model
 
 
 def _cases(quick: bool):
     from roar_formal.clf.program import Program
     from roar_formal.clf.signature import ExecDirective
 
+    yield from _roar_cases()
     gen = _gen()
     ns = (4,) if quick else (4, 5)
     for variant in ("dl", "ok", "ll"):
         for n in ns:
             p = Program.from_text(gen.program(variant, n))
-            yield f"philosophers {variant} N={n}", p, p.start_context(p.sig.directives[-1].start)
+            yield f"philosophers {variant} N={n}", p, p.start_context(p.sig.directives[-1].start), None
     for k in ((4, 6) if quick else (4, 5, 6)):
         p = Program.from_text(independent(k))
-        yield f"{k} independent processes", p, p.start_context(p.sig.directives[-1].start)
+        yield f"{k} independent processes", p, p.start_context(p.sig.directives[-1].start), None
     for f in sorted((ROOT / "models/clf").glob("*.clf")):
         try:
             p = Program.from_file(f)
@@ -70,7 +105,7 @@ def _cases(quick: bool):
         execs = [d for d in p.sig.directives if isinstance(d, ExecDirective)]
         for i, d in enumerate(execs, 1):
             try:
-                yield f"clf/{f.name} #exec {i}", p, p.start_context(d.start)
+                yield f"clf/{f.name} #exec {i}", p, p.start_context(d.start), None
             except Exception:  # noqa: BLE001
                 continue
 
@@ -80,15 +115,15 @@ def _run(repeats: int, quick: bool) -> dict:
 
     rows, data = [], []
     probe = Budget(max_states=PROBE, max_seconds=5 if quick else 10)
-    for name, program, start in _cases(quick):
-        g_full, _, _ = _explore(program, start, False, probe)
+    for name, program, start, roar in _cases(quick):
+        g_full, _, _ = _explore(program, start, False, probe, roar)
         if not g_full.complete:
             continue  # infinite or too large: not part of the benchmark
         t_full, t_red = [], []
         for _ in range(max(1, repeats)):
-            g_full, dt, st_full = _explore(program, start, False, Budget())
+            g_full, dt, st_full = _explore(program, start, False, Budget(), roar)
             t_full.append(dt)
-            g_red, dt, st_red = _explore(program, start, True, Budget())
+            g_red, dt, st_red = _explore(program, start, True, Budget(), roar)
             t_red.append(dt)
         rec = {"model": name, "states": g_full.n_states, "transitions": g_full.n_edges,
                "seconds": statistics.median(t_full), "states_reduced": g_red.n_states,
