@@ -92,10 +92,10 @@ def canonical_key(ctx: Context, rounds: int = 3) -> tuple:
                     for p in found:
                         occ[p].append((sh, pos))
         new = {p: hash(tuple(sorted(o))) for p, o in occ.items()}
-        if len(set(new.values())) == len(set(colour.values())) and _ == rounds - 1:
-            colour = new
-            break
+        stable = len(set(new.values())) == len(set(colour.values()))
         colour = new
+        if stable or len(set(colour.values())) == len(colour):
+            break   # the partition no longer refines (or every parameter is told apart)
     memo = {}
     order = sorted(items, key=lambda it: (it[0], it[1], it[3], tuple(
         _shape(v, colour, memo) if isinstance(v, Node) else (v if v is not None else -1) for v in it[2])))
