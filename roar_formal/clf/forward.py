@@ -370,12 +370,17 @@ class Run:
         self._rr = 0
         self.by_family: dict = {}
         self.always: list[Template] = []
+        self.proved: list[Template] = []  # rules with a premise proved from clauses
         for t in self.templates:
             fams = {p.family for p in t.premises if not p.backward}
-            # A built-in premise is a function of the slots the context premises bind, so
-            # such a rule is woken by facts like any other; a premise proved from clauses
-            # may depend on anything, so its rule is retried after every step.
-            if any(p.backward and p.family not in BUILTINS for p in t.premises) or not t.premises:
+            # A premise proved by backward chaining is a function of the slots the context
+            # premises bind, of the signature's clauses (fixed) and of the persistent facts
+            # of the context (prove_premise's hypotheses): so such a rule is woken by the
+            # facts its context premises match, like any other, and retried when a
+            # persistent fact appears. A rule with no context premise is always retried.
+            if any(p.backward and p.family not in BUILTINS for p in t.premises):
+                self.proved.append(t)
+            if not fams:
                 self.always.append(t)
             for f in fams:
                 self.by_family.setdefault(f, []).append(t)
@@ -489,6 +494,9 @@ class Run:
                             agenda.add(r)
             for t in self.always:
                 agenda.add(t)
+            if self.proved and any(mode == PERS for mode, _x in step.produced):
+                for t in self.proved:
+                    agenda.add(t)
             if self.on_step is not None:
                 self.on_step(step, ctx)
         # bound reached: quiescent only if nothing is enabled any more
