@@ -18,6 +18,7 @@ from typing import Callable, Optional
 from ..clf.backward import Backward
 from ..clf.context import Context
 from ..clf.parser import parse_expr
+from ..clf.forward import enabled_steps
 from ..clf.program import Program
 from ..clf.query import with_big_stack
 from ..clf.signature import Elaborator, ExecDirective
@@ -79,6 +80,51 @@ def make_accept(program: Program, text: str, where: str) -> Callable[[Context], 
     return accept
 
 
+def _split_tensor(text: str) -> list[str]:
+    """``A * B * C`` at parenthesis depth 0 -> [A, B, C]."""
+    parts, depth, cur = [], 0, ""
+    for ch in text:
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+        if ch == "*" and depth == 0:
+            parts.append(cur.strip())
+            cur = ""
+        else:
+            cur += ch
+    parts.append(cur.strip())
+    return [p for p in parts if p]
+
+
+def make_never(program_text: str, file: str, patterns: list) -> Callable[[Context], Optional[str]]:
+    """Invariant patterns as rules that must never be enabled: pattern ``A * B`` is violated by
+    a state exactly when ``A -o B -o {1}`` could fire there (a sub-multiset match, with
+    upper-case names as pattern variables and ``!A`` for persistent facts)."""
+    rules = []
+    for k, (pat, pos) in enumerate(patterns):
+        parts = _split_tensor(pat)
+        rules.append(f"never_{k} : " + " -o ".join(parts) + " -o {1}.")
+    extra = "\n".join(rules) + "\n"
+    try:
+        prog = Program.from_text(program_text + "\n" + extra, file)
+    except RoarError as exc:
+        # the error is in a pattern: point at the property file
+        k = next((i for i, r in enumerate(rules) if r.split(" :")[0] in exc.message), None)
+        pat, pos = patterns[k] if k is not None else patterns[0]
+        raise RoarError(f"invariant pattern {pat!r}: {exc.message}", pos) from None
+    tpls = [t for t in prog.templates if t.name.startswith("never_")]
+    prover = prog.prover()
+
+    def bad(ctx: Context) -> Optional[str]:
+        for t in tpls:
+            if any(True for _ in enabled_steps([t], ctx, prover, first_only=True)):
+                return f"a reachable state matches the forbidden pattern {patterns[int(t.name[6:])][0]!r}"
+        return None
+
+    return bad
+
+
 def run_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
     if job.is_roar:
         return with_big_stack(_run_roar_job, job, on_progress)
@@ -115,6 +161,7 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
             options.reduction = True
         else:
             reduction = "off (deadlock only)"
+    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check else None
     system = RoarSystem(model, start, options, pairs)
     explorer = Explorer(system, job.search, on_progress)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
@@ -139,6 +186,8 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
                     return (f"in {pair.where}, a command of the subtree of '{pair.b_text}' started before every "
                             f"command of the subtree of '{pair.a_text}' ended") if pair else None
                 verdicts[p] = check_states(graph, p, bad)
+            elif p == "invariant":
+                verdicts[p] = check_states(graph, p, lambda sid: never(states[sid]))
             elif p == "exclusive-writes":
                 def bad(sid):
                     w = system.shared_write(states[sid])
@@ -169,6 +218,8 @@ def _run_job(job: Job, on_progress) -> JobResult:
     options = Options(progress_rules=tuple(props.progress), fairness=props.fairness, canonical=job.canonical)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
                              "[deadlock] accept") if props.accept else None
+    never = make_never(Path(job.model).read_text(encoding="utf-8"), str(job.model), props.never) \
+        if "invariant" in props.check else None
     ground_model = None
     if job.backend in ("auto", "ground") and job.search == "bfs":
         try:
@@ -185,6 +236,8 @@ def _run_job(job: Job, on_progress) -> JobResult:
             reduction = "not used by the ground backend"
         elif "livelock" in props.check:
             reduction = "off for livelock"
+        elif set(props.check) - {"deadlock"}:
+            reduction = "off (deadlock only)"
         else:
             reduction = "on"
             options.reduction = True
@@ -207,7 +260,10 @@ def _run_job(job: Job, on_progress) -> JobResult:
         accept = (lambda sid: accept_ctx(state_of(sid))) if accept_ctx else None
         verdicts = {}
         for p in props.check:
-            verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else check_livelock(graph)
+            if p == "invariant":
+                verdicts[p] = check_states(graph, p, lambda sid: never(state_of(sid)))
+            else:
+                verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else check_livelock(graph)
         if graph.complete or all(v.violated for v in verdicts.values()):
             break
         if "state budget" not in graph.stop_reason or (limit is not None and k >= limit):

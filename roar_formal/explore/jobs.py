@@ -18,7 +18,7 @@ from typing import Any, Optional
 from ..errors import Pos, RoarError
 from .search import Budget
 
-PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes")
+PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant")
 #: properties that read ROAR events or state: only for jobs on a spec
 ROAR_PROPERTIES = ("sequential-achievement", "exclusive-writes")
 STATUSES = ("holds", "violated")
@@ -34,6 +34,7 @@ class PropertySpec:
     accept: Optional[str] = None  # a positive CLF type: quiescent states matching it are final
     sources: list[str] = field(default_factory=list)
     fairness_given: bool = False
+    never: list[tuple[str, Pos]] = field(default_factory=list)   # invariant: patterns no reachable state matches
     sequence_recipes: list[str] = field(default_factory=list)   # agent.task.recipe; empty: every recipe
 
 
@@ -105,7 +106,8 @@ def _typed(d: dict, key: str, ty, path: Path, what: str) -> Any:
 def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
     spec = into or PropertySpec()
     d = _load_toml(path)
-    _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement"}, "a property file", path)
+    _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant"},
+                 "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
@@ -134,6 +136,17 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                     raise RoarError(f"[sequential-achievement] recipes are named 'agent.task.recipe', not {r!r}",
                                     Pos(str(path), _line_of(path, "recipes"), 1))
                 spec.sequence_recipes.append(r)
+    if "invariant" in d:
+        inv = _typed(d, "invariant", dict, path, "a property file")
+        _expect_keys(inv, {"never"}, "[invariant]", path)
+        pats = _typed(inv, "never", list, path, "[invariant]") if "never" in inv else []
+        for pat in pats:
+            if not isinstance(pat, str) or not pat.strip():
+                raise RoarError("[invariant] never is a list of CLF patterns such as \"busy P * busy P\"",
+                                Pos(str(path), _line_of(path, "never"), 1))
+            spec.never.append((pat, Pos(str(path), _line_of(path, "never"), 1)))
+        if pats and "invariant" not in spec.check:
+            spec.check.append("invariant")
     if "deadlock" in d:
         dl = _typed(d, "deadlock", dict, path, "a property file")
         _expect_keys(dl, {"accept"}, "[deadlock]", path)
@@ -217,6 +230,9 @@ def load_job(path: str | Path) -> Job:
             if p in ROAR_PROPERTIES:
                 raise RoarError(f"property '{p}' reads ROAR events: it needs a job on a spec ('spec = ...')",
                                 Pos(str(path), 1, 1))
+    if "invariant" in job.props.check and not job.props.never:
+        raise RoarError("property 'invariant' needs patterns: [invariant] never = [\"...\"] in a property file",
+                        Pos(str(path), 1, 1))
     if not job.props.check:
         raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
                         Pos(str(path), 1, 1))
