@@ -63,9 +63,9 @@ def big(fn, *args):
 # ------------------------------------------------------------------ 1. expected verdicts
 
 
-def test_the_spec_jobs_are_the_six_seeded_faults_and_fixes():
-    assert SPEC_JOBS == ["mutual_make.toml", "mutual_make_fixed.toml", "ordered_pick.toml",
-                         "ordered_pick_fixed.toml", "retry_bounded.toml", "retry_forever.toml"]
+def test_the_spec_jobs_are_the_six_seeded_faults_and_fixes_and_two_examples():
+    assert SPEC_JOBS == ["conflict.toml", "demo_loco.toml", "mutual_make.toml", "mutual_make_fixed.toml",
+                         "ordered_pick.toml", "ordered_pick_fixed.toml", "retry_bounded.toml", "retry_forever.toml"]
 
 
 @pytest.mark.parametrize("name", SPEC_JOBS)
