@@ -134,7 +134,6 @@ def _print_cx(console: Console, res, prop: str, verbose: bool) -> None:
 
 def _roar_state(res, sid: int) -> list[str]:
     """The final state of a ROAR counterexample, briefly: requests and their states, waiting recipes."""
-    from ..clf.printer import show
     model, _start, explorer = res.roar
     ctx = explorer.states[sid]
     out = []

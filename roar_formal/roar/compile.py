@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Optional
 
+from ..clf.terms import format_number
 from ..errors import Pos, RoarError, UnsupportedError
 from . import ast as a
 from .checks import _Checker, _Scope, check_request
@@ -57,26 +58,11 @@ def nat(k: int) -> str:
 
 
 def num_lit(x) -> str:
-    """A number as a CLF literal (exact)."""
-    f = Fraction(x) if not isinstance(x, float) else Fraction(repr(x))
-    if f.denominator == 1:
-        return str(f.numerator)
-    # finite decimal?
-    d = f.denominator
-    k = 0
-    while d % 10 == 0 or d % 2 == 0 or d % 5 == 0:
-        if d == 1:
-            break
-        k += 1
-        if (f * 10 ** k).denominator == 1:
-            break
-        d = (f * 10 ** k).denominator
-    if (f * 10 ** k).denominator != 1:
-        raise RoarError(f"the number {f} has no exact decimal form")
-    sign = "-" if f < 0 else ""
-    n = abs(f.numerator * 10 ** k // f.denominator)
-    s = str(n).rjust(k + 1, "0")
-    return f"{sign}{s[:-k]}.{s[-k:]}"
+    """A number as a CLF literal (exact; the engine's own printing of number literals)."""
+    text = format_number(Fraction(repr(x)) if isinstance(x, float) else Fraction(x))
+    if "/" in text:
+        raise RoarError(f"the number {text} has no exact decimal form")
+    return text
 
 
 def str_lit(s: str) -> str:
@@ -367,10 +353,6 @@ class _Compiler:
             c = self.cst_for(cx.agent, e.constraint, None)
             return f"(plast {c})"
         raise UnsupportedError(f"expression {format_expr(e)}", e.pos)
-
-    def expr(self, e: a.Expr, cx: _Ctx) -> str:
-        self.prepare(e, cx)
-        return self.pexp(e, cx)
 
     def premises(self, cx: _Ctx, writes: Optional[dict[str, str]] = None) -> tuple[str, str]:
         """Premises reading the cells of ``cx`` (and the cells written), and the facts that put them back."""

@@ -21,14 +21,13 @@ so the search branches on every outcome). On top of it this module gives:
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional
 
 from ..clf.context import Context
 from ..clf.rules import LIN
 from ..clf.terms import Const, Root, const
 from ..explore.system import ClfSystem, Options, Successor
-from . import ast as a
 from .compile import CompiledModel
 
 #: rules whose step brings a request to a final state (the default progress events)

@@ -557,7 +557,6 @@ def _cells(ctx, cell: str):
 def _result(model, ctx, steps, events, quiescent, narrator) -> RunResult:
     outcome, ec = "unfinished", []
     final: dict = {}
-    from ..clf.rules import LIN
     for mode, f, _n in ctx.facts():
         if type(f) is not Root or not isinstance(f.head, Const):
             continue
