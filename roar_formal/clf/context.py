@@ -22,33 +22,63 @@ _rule_ids = itertools.count(1)
 
 
 class Bag:
-    """An insertion-ordered set with O(1) add, remove and random access."""
+    """An insertion-ordered set with O(1) add, remove and random access.
+
+    Most argument bags of a large context hold one or two facts, so a bag keeps
+    its position dictionary only once it grows past ``SMALL`` items; below that,
+    membership and removal scan the short list (identity comparisons). That
+    keeps the index small enough to stay in cache as the context grows
+    (benchmark B2)."""
 
     __slots__ = ("items", "pos")
+    SMALL = 8
 
     def __init__(self) -> None:
         self.items: list = []
-        self.pos: dict = {}
+        self.pos: Optional[dict] = None
 
     def add(self, x) -> None:
-        if x not in self.pos:
-            self.pos[x] = len(self.items)
-            self.items.append(x)
+        pos = self.pos
+        items = self.items
+        if pos is None:
+            for y in items:
+                if y is x:
+                    return
+            items.append(x)
+            if len(items) > Bag.SMALL:
+                self.pos = {y: i for i, y in enumerate(items)}
+            return
+        if x not in pos:
+            pos[x] = len(items)
+            items.append(x)
 
     def discard(self, x) -> None:
-        i = self.pos.pop(x, None)
+        pos = self.pos
+        items = self.items
+        if pos is None:
+            for i, y in enumerate(items):
+                if y is x:
+                    last = items.pop()
+                    if i < len(items):
+                        items[i] = last
+                    return
+            return
+        i = pos.pop(x, None)
         if i is None:
             return
-        last = self.items.pop()
-        if i < len(self.items):
-            self.items[i] = last
-            self.pos[last] = i
+        last = items.pop()
+        if i < len(items):
+            items[i] = last
+            pos[last] = i
 
     def __len__(self) -> int:
         return len(self.items)
 
     def __contains__(self, x) -> bool:
-        return x in self.pos
+        pos = self.pos
+        if pos is None:
+            return any(y is x for y in self.items)
+        return x in pos
 
     def __iter__(self) -> Iterator:
         return iter(self.items)
@@ -92,15 +122,21 @@ class CtxRule:
 
 
 class Context:
-    """A multiset of facts and rules with indexes for matching."""
+    """A multiset of facts and rules with indexes for matching.
+
+    Facts are indexed by family, and by family, argument position and argument
+    in nested dictionaries: the innermost is keyed by the argument term itself
+    (hash-consed, so hashed and compared by identity), which keeps a lookup in a
+    large context to a couple of memory accesses (benchmark B2)."""
 
     def __init__(self) -> None:
         self.lin: dict[Node, int] = {}
         self.aff: dict[Node, int] = {}
         self.pers: dict[Node, None] = {}
-        self.index: dict = {}  # family | (family, i, arg) -> Bag of facts
+        self.index: dict = {}  # family -> Bag of facts
+        self.by_arg: dict = {}  # family -> [per argument position: {argument: Bag of facts}]
         self.rules: dict[int, CtxRule] = {}
-        self.rule_index: dict = {}  # same keys -> Bag of rule uids
+        self.rule_index: dict = {}  # family | (family, i, arg) | None -> Bag of rule uids
         self.inert: list[tuple[str, Node]] = []  # hypotheses only backward chaining can use
         self.implicit: Optional[dict] = None  # the program's implicit-argument counts, for printing
 
@@ -134,14 +170,18 @@ class Context:
             if b is None:
                 b = idx[fam] = Bag()
             b.add(t)
-            i = 0
-            for a in t.args:
-                k = (fam, i, a)
-                i += 1
-                b = idx.get(k)
-                if b is None:
-                    b = idx[k] = Bag()
-                b.add(t)
+            args = t.args
+            if args:
+                per = self.by_arg.get(fam)
+                if per is None or len(per) < len(args):
+                    per = self.by_arg[fam] = (per or []) + [{} for _ in range(len(args) - len(per or ()))]
+                for d, a in zip(per, args):
+                    b = d.get(a)
+                    if b is None:
+                        b = d[a] = Bag()
+                        b.items.append(t)
+                    else:
+                        b.add(t)
         return True
 
     def remove_fact(self, t: Root, mode: str) -> None:
@@ -161,23 +201,26 @@ class Context:
         else:
             return  # persistent facts are never consumed
         if not (t in lin or t in aff or t in self.pers):  # self.present(t), inlined
-            idx = self.index
             fam = t.head
-            idx[fam].discard(t)
-            i = 0
-            for a in t.args:
-                k = (fam, i, a)
-                b = idx[k]
-                b.discard(t)
-                if not b.items:
-                    # drop the emptied argument bag (a missing key reads as an empty bag):
-                    # arguments are often one-off terms, and the index would otherwise keep
-                    # a bag for every argument ever seen
-                    del idx[k]
-                i += 1
+            self.index[fam].discard(t)
+            args = t.args
+            if args:
+                for d, a in zip(self.by_arg[fam], args):
+                    b = d[a]
+                    if len(b.items) == 1:
+                        # t was the only fact with this argument: drop the bag (a missing
+                        # key reads as an empty bag; arguments are often one-off terms,
+                        # and the index would otherwise keep a bag for every argument)
+                        del d[a]
+                    else:
+                        b.discard(t)
 
-    def candidates(self, key) -> Optional[Bag]:
-        return self.index.get(key)
+    def candidates(self, fam, position: int, arg: Node) -> Optional[Bag]:
+        """The facts of family ``fam`` with ``arg`` at ``position`` (None: there are none)."""
+        per = self.by_arg.get(fam)
+        if per is None or position >= len(per):
+            return None
+        return per[position].get(arg)
 
     # -------------------------------------------------------------- rules
     def add_rule(self, alts: list[Template], env: tuple, mode: str, source: Node,

@@ -153,6 +153,7 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
     back = [i for i, p in enumerate(prems) if p.backward]
     ctx_prems = n - len(back)
     index = ctx.index
+    by_arg = ctx.by_arg
     lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
 
     def go(k: int) -> Iterator[list]:
@@ -164,7 +165,7 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
                 return
             yield from _backward(0)
             return
-        sel = _most_selective(prems, done, b, index)
+        sel = _most_selective(prems, done, b, index, by_arg)
         if sel is None:
             return
         best, best_bag = sel
@@ -216,7 +217,7 @@ def _available(key: tuple, lin: dict, aff: dict, pers: dict, used: dict) -> bool
     return have > used.get(key, 0)
 
 
-def _most_selective(prems, done: list, b: list, index: dict):
+def _most_selective(prems, done: list, b: list, index: dict, by_arg: dict):
     """The remaining context premise with the fewest candidates, and its candidate bag;
     None when some premise has no candidate at all (no match is possible)."""
     best = None
@@ -243,7 +244,8 @@ def _most_selective(prems, done: list, b: list, index: dict):
                     continue
             else:
                 continue
-            bag2 = index.get((fam, j, v))
+            per = by_arg.get(fam)
+            bag2 = per[j].get(v) if per is not None and j < len(per) else None
             if bag2 is None:
                 return None
             n2 = len(bag2.items)
@@ -264,54 +266,132 @@ def _most_selective(prems, done: list, b: list, index: dict):
 
 
 def first_match(ctx: Context, tpl: Template, b: list, start: int) -> Optional[list]:
-    """The first match of a template without proved premises (the committed-choice hot
-    path: plain recursion, no generator chain). Same search order as :func:`find_matches`."""
-    prems = tpl.premises
-    n = len(prems)
-    done = [False] * n
-    used: dict = {}
+    """The first match of a template without proved premises: the committed-choice
+    hot path. Same search order as :func:`find_matches` (most selective premise
+    first, candidates rotated from ``start``, the first mode a fact can serve in),
+    but over a per-template plan of each premise's arguments (a constant, a bare
+    slot, or a pattern for :func:`match`) and with plain recursion, so a step in a
+    large context costs a few dictionary lookups (benchmark B2)."""
+    plan = tpl.match_plan
+    if plan is None:
+        plan = tpl.match_plan = _match_plan(tpl)
     consumed: list = []
-    trail: list = []
-    index = ctx.index
-    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
+    if _first(plan, len(plan), [False] * len(plan), b, consumed, [], ctx.index, ctx.by_arg,
+              ctx.lin, ctx.aff, ctx.pers, start):
+        return consumed
+    return None
 
-    def go(k: int) -> bool:
-        if k == n:
-            return True
-        sel = _most_selective(prems, done, b, index)
-        if sel is None:
-            return False
-        best, bag = sel
-        p = prems[best]
-        done[best] = True
+
+_CONST, _SLOT, _PATTERN = 0, 1, 2
+
+
+def _match_plan(tpl: Template) -> tuple:
+    """Per premise: (serve modes, family, ((position, kind, value), ...))."""
+    plan = []
+    for p in tpl.premises:
         pat = p.pattern
-        for t in (bag.rotated(start) if start >= 0 else bag.items):
-            for mode in _SERVE[p.mode]:
-                key = (mode, t)
-                if not _available(key, lin, aff, pers, used):
-                    continue
-                mark = len(trail)
-                if match(pat, t, b, trail):
-                    if mode != PERS:
-                        used[key] = used.get(key, 0) + 1
-                    consumed.append((mode, t))
-                    if go(k + 1):
-                        return True
-                    consumed.pop()
-                    if mode != PERS:
-                        used[key] -= 1
-                while len(trail) > mark:
-                    b[trail.pop()] = None
-                break
-        done[best] = False
-        return False
+        args = []
+        for j, a in enumerate(pat.args):
+            if not a.metas:
+                # a ground argument; one with a bound variable cannot be an index key
+                args.append((j, _PATTERN if a.maxb else _CONST, a))
+            elif type(a) is Root and not a.args and type(a.head) is Meta:
+                args.append((j, _SLOT, a.head.index))
+            else:
+                args.append((j, _PATTERN, a))
+        plan.append((_SERVE[p.mode], pat.head, tuple(args), p.pattern))
+    return tuple(plan)
 
-    return consumed if go(0) else None
+
+def _first(plan, left, done, b, consumed, trail, index, by_arg, lin, aff, pers, start) -> bool:
+    if not left:
+        return True
+    # the remaining premise with the fewest candidates (the first on ties)
+    best = -1
+    best_bag = None
+    best_n = 0
+    for i, (_modes, fam, args, _pat) in enumerate(plan):
+        if done[i]:
+            continue
+        bag = None
+        for j, kind, v in args:
+            if kind == _SLOT:
+                v = b[v]
+                if v is None:
+                    continue
+            elif kind == _PATTERN:
+                continue
+            per = by_arg.get(fam)
+            if per is None:
+                return False
+            bag2 = per[j].get(v)
+            if bag2 is None:
+                return False
+            if bag is None or len(bag2.items) < len(bag.items):
+                bag = bag2
+        if bag is None:
+            bag = index.get(fam)
+            if bag is None:
+                return False
+        n = len(bag.items)
+        if not n:
+            return False
+        if best < 0 or n < best_n:
+            best, best_bag, best_n = i, bag, n
+    modes, _fam, args, pat = plan[best]
+    done[best] = True
+    items = best_bag.items
+    n = best_n
+    first = start % n if start >= 0 else 0
+    for r in range(n):
+        t = items[(first + r) % n] if first else items[r]
+        for mode in modes:
+            # is one more copy of t left in this mode, after what this match used?
+            if mode == PERS:
+                if t not in pers:
+                    continue
+            else:
+                have = lin.get(t, 0) if mode == LIN else aff.get(t, 0)
+                if not have:
+                    continue
+                if consumed and have <= sum(1 for m, u in consumed if u is t and m == mode):
+                    continue
+            mark = len(trail)
+            ok = True
+            targs = t.args
+            for j, kind, v in args:
+                a = targs[j]
+                if kind == _SLOT:
+                    w = b[v]
+                    if w is None:
+                        b[v] = a
+                        trail.append(v)
+                    elif w is not a:
+                        ok = False
+                        break
+                elif kind == _CONST:
+                    if a is not v:
+                        ok = False
+                        break
+                elif not match(v, a, b, trail):
+                    ok = False
+                    break
+            if ok:
+                consumed.append((mode, t))
+                if left == 1 or _first(plan, left - 1, done, b, consumed, trail, index, by_arg, lin, aff, pers,
+                                       start):
+                    return True
+                consumed.pop()
+            while len(trail) > mark:
+                b[trail.pop()] = None
+            break
+    done[best] = False
+    return False
 
 # ------------------------------------------------------------------ firing
 
 
-@dataclass
+@dataclass(slots=True)
 class Step:
     """One committed forward step: which rule, with which facts, producing what."""
 
@@ -363,6 +443,8 @@ class Run:
         self.templates = [t for t in templates if t.forward]
         self.ctx = ctx
         self.rng = random.Random(seed)
+        self._random = self.rng.random  # bound once: the scheduler draws twice a step
+        self._bits = self.rng.getrandbits
         self.fair = fair
         self.prover = prover
         self.on_step = on_step
@@ -396,11 +478,11 @@ class Run:
         if self.fair:
             self._rr += 1
             return items[self._rr % len(items)]
-        return items[self.rng.randrange(len(items))]
+        return items[int(self._random() * len(items))]
 
     def _try(self, item) -> Optional[Step]:
         ctx = self.ctx
-        start = self._rr if self.fair else self.rng.randrange(1 << 30)
+        start = self._rr if self.fair else self._bits(30)
         if type(item) is CtxRule:
             if item.uid not in ctx.rules:
                 return None

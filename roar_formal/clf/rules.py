@@ -13,6 +13,7 @@ when it is created, only when it fires.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Optional
 
 from ..errors import Pos, UnsupportedError
@@ -71,8 +72,9 @@ class Template:
     forward: bool = True
     slot_names: list[str] = field(default_factory=list)
     source: Optional[Node] = None  # the type it was compiled from (slots as Metas)
+    match_plan: Optional[tuple] = field(default=None, repr=False)  # forward.first_match's, made on first use
 
-    @property
+    @cached_property
     def backward_premises(self) -> bool:
         """Does some premise need proof search (not just a lookup in the context)?"""
         return any(p.backward for p in self.premises)

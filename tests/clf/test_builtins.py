@@ -253,7 +253,7 @@ at : dest -> number -> type.
     assert same_state(a, b) and canonical_key(a) == canonical_key(b)
     assert not same_state(a, c)
     # the argument index finds literal arguments
-    assert len(a.index[(Const("cell"), 0, num_term(3))]) == 1
+    assert len(a.candidates(Const("cell"), 0, num_term(3))) == 1
 
 
 def parse_start(prog, text):
