@@ -137,7 +137,55 @@ def _run(repeats: int, quick: bool) -> dict:
                      rec["deadlock"] + ("" if rec["agree"] else " != " + rec["deadlock_reduced"])])
     cols = ["model", "states", "transitions", "s", "states (POR)", "transitions (POR)", "s (POR)",
             "factor", "deadlock"]
-    return {"results": data, "tables": [{"title": TITLE, "columns": cols, "rows": rows}]}
+    prop_rows, prop_data = _property_rows(quick)
+    return {"results": data, "property_results": prop_data,
+            "tables": [{"title": TITLE, "columns": cols, "rows": rows},
+                       {"title": "B4 reduction with other properties: an invariant (a forbidden pattern kept in "
+                                 "every stubborn set) and progress-free cycles (progress steps visible, no fairness)",
+                        "columns": ["model", "property", "states", "states (POR)", "factor", "verdict",
+                                    "verdict (POR)"],
+                        "rows": prop_rows}]}
+
+
+def _property_rows(quick: bool):
+    """Invariants and livelock without fairness, with and without reduction."""
+    from roar_formal.clf.program import Program
+    from roar_formal.explore.check import make_never
+    from roar_formal.explore.properties import check_livelock, check_states
+    from roar_formal.explore.search import Budget, Explorer
+    from roar_formal.explore.system import ClfSystem, Options
+
+    gen = _gen()
+    cases = []
+    for k in ((4, 6) if quick else (4, 5, 6)):
+        src = independent(k)
+        cases.append((f"{k} independent processes", src, "invariant", "e q0 * e q1"))
+        cases.append((f"{k} independent processes", src, "livelock", "de"))
+    for n in ((4,) if quick else (4, 5)):
+        cases.append((f"philosophers ok N={n}", gen.program("ok", n), "invariant", "at3 p0 * at3 p1"))
+        cases.append((f"philosophers ll N={n}", gen.program("ll", n), "livelock", "eat"))
+    rows, data = [], []
+    for name, src, prop, arg in cases:
+        p = Program.from_text(src)
+        never = make_never(src, name, [(arg, None)]) if prop == "invariant" else None
+        out = {}
+        for red in (False, True):
+            opts = Options(reduction=red, fairness="none")
+            if never is not None:
+                opts.observers = never.templates
+            else:
+                opts.progress_rules = (arg,)
+            ex = Explorer(ClfSystem(p, p.start_context(p.sig.directives[-1].start), opts))
+            g = ex.run(Budget())
+            v = (check_states(g, "invariant", lambda sid, ex=ex: never(ex.states[sid])) if never is not None
+                 else check_livelock(g))
+            out[red] = (g.n_states, v.status)
+        rec = {"model": name, "property": prop, "states": out[False][0], "states_reduced": out[True][0],
+               "verdict": out[False][1], "verdict_reduced": out[True][1]}
+        data.append(rec)
+        rows.append([name, f"{prop} ({arg})", f"{rec['states']:,}", f"{rec['states_reduced']:,}",
+                     f"{rec['states'] / max(1, rec['states_reduced']):.2f}", rec["verdict"], rec["verdict_reduced"]])
+    return rows, data
 
 
 def run(repeats: int = 1, quick: bool = False) -> dict:

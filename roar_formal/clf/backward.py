@@ -14,15 +14,17 @@ first: ``C o- A o- B`` solves A, then B.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import Callable, Iterator, Optional
 
+from . import terms
 from .builtins import BUILTINS, BuiltinError, evaluate, input_values
 from .context import Context
 from .forward import Run, inst, load_positive, match
 from .rules import AFF, LIN, PERS, positive_parts
-from .terms import (NUMBER, Aff, Bang, Const, EVar, Imp, Lit, Monad, Node, Param, Pi, Root, Top, With, deref, num_term,
-                    param_term, string_term, subst, subst1, zonk)
+from .terms import (NUMBER, Aff, Bang, Const, EVar, Imp, Lam, Lit, Meta, Monad, Node, Param, Pi, Root, Top, With, deref,
+                    num_term, param_term, string_term, subst, subst1, zonk)
 from .unify import Unifier
 
 
@@ -438,11 +440,39 @@ def head_families(ty: Node) -> set:
 
 def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> Iterator[None]:
     """Solve a forward rule's backward premise: slots unbound so far become logic variables,
-    persistent facts of the context serve as hypotheses; committed to the first proof."""
+    persistent facts of the context serve as hypotheses; committed to the first proof.
+
+    The proof search is finished (and undone) before the bindings are handed over, so a
+    premise's answer is a function of the premise, the values of its slots and the
+    persistent facts of its family: outside other proof searches it is memoised per
+    program under that key (the explorer proves the same premises in state after state),
+    unless the search ran a monad or assumed hypotheses (it then made fresh names)."""
     bi = BUILTINS.get(p.family)
     if bi is not None:
         yield from _builtin_premise(bi, tpl, p, b, trail)
         return
+    pat = p.pattern
+    memo = key = None
+    if bw.depth == 0 and type(pat) is Root and type(pat.head) is not Meta:
+        memo = _premise_memo(bw.program)
+    if memo is not None:
+        slots = p.__dict__.get("_slots")
+        if slots is None:
+            slots = p._slots = _slots_of(pat)
+        bag = ctx.index.get(pat.head)
+        pers = ctx.pers
+        key = (p, tuple([b[i] for i in slots]), tuple([t for t in bag.items if t in pers]) if bag else ())
+        hit = memo.get(key)
+        if hit is not None:
+            found, used_ids = hit
+            # the ids the logic variables below and the search would have taken
+            _skip_param_ids(b.count(None) + used_ids)
+            if found is not None:
+                for i, v in found:
+                    b[i] = v
+                    trail.append(i)
+                yield
+            return
     evs: dict[int, Root] = {}
     vals = list(b)
     for i, v in enumerate(vals):
@@ -450,7 +480,7 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
             x = Root(EVar(f"s{i}"), ())
             evs[i] = x
             vals[i] = x
-    goal = inst(p.pattern, vals)
+    goal = inst(pat, vals)
     fam = goal.head if type(goal) is Root else None
     added = []
     if fam is not None:
@@ -459,23 +489,84 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
             for t in bag.items:
                 if t in ctx.pers:
                     added.append(Hyp(t, PERS))
+    found = None
+    names, runs = bw._names, len(bw.monad_runs)
+    first_id = _next_param_id() if memo is not None else None
     saved = bw.hyps
     bw.hyps = added
     mark, hmark = bw.u.mark(), len(bw.htrail)
+    proofs = bw.solve(goal)
     try:
-        for _ in bw.solve(goal):
-            ok = True
+        for _ in proofs:
+            found = []
             for i, x in evs.items():
                 v = zonk(x)
                 if v is not x and not v.evars:
-                    b[i] = v
-                    trail.append(i)
-            if ok:
-                yield
-            return
+                    found.append((i, v))
+            break
     finally:
+        proofs.close()
         bw._undo(mark, hmark)
         bw.hyps = saved
+    if first_id is not None and bw._names == names and len(bw.monad_runs) == runs:
+        if len(memo) >= _PREMISE_MEMO_MAX:
+            memo.clear()
+        memo[key] = (found, _next_param_id() - first_id)
+    if found is not None:
+        for i, v in found:
+            b[i] = v
+            trail.append(i)
+        yield
+
+
+#: entries kept per program before the premise memo starts afresh (bounds its memory)
+_PREMISE_MEMO_MAX = 200_000
+
+
+def _next_param_id() -> Optional[int]:
+    """The id the next fresh name or logic variable will get (None if unreadable).
+
+    A memoised answer skips the ids the search would have used, so the fresh names
+    made afterwards (and printed in traces) are numbered as without the memo."""
+    r = repr(terms._param_ids)
+    if r.startswith("count(") and r.endswith(")") and r[6:-1].isdigit():
+        return int(r[6:-1])
+    return None
+
+
+def _skip_param_ids(n: int) -> None:
+    if n:
+        terms._param_ids = itertools.count(_next_param_id() + n)
+
+
+def _premise_memo(program) -> Optional[dict]:
+    d = getattr(program, "__dict__", None)
+    if d is None:
+        return None
+    memo = d.get("_premise_memo")
+    if memo is None:
+        memo = d["_premise_memo"] = {}
+    return memo
+
+
+def _slots_of(pattern: Node) -> tuple:
+    """The slot indices a premise's pattern mentions, in a fixed order."""
+    out: dict = {}
+    stack = [pattern]
+    while stack:
+        x = stack.pop()
+        if not x.metas:
+            continue
+        tx = type(x)
+        if tx is Root:
+            if type(x.head) is Meta:
+                out[x.head.index] = None
+            stack.extend(x.args)
+        elif tx is Lam:
+            stack.append(x.body)
+        else:
+            stack.extend(v for v in (getattr(x, f) for f in tx.fields) if isinstance(v, Node))
+    return tuple(sorted(out))
 
 
 def _builtin_premise(bi, tpl, p, b: list, trail: list) -> Iterator[None]:

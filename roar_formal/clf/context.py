@@ -139,6 +139,17 @@ class Context:
         self.rule_index: dict = {}  # family | (family, i, arg) | None -> Bag of rule uids
         self.inert: list[tuple[str, Node]] = []  # hypotheses only backward chaining can use
         self.implicit: Optional[dict] = None  # the program's implicit-argument counts, for printing
+        self._canon = None  # state.canonical_key's cached result; every mutator clears it
+        # For copy(): families whose bags may not be in the order re-adding the facts would
+        # give (None: not tracked, as for any context not made by copy); families whose index
+        # entries another context may share (cloned before they change); families whose
+        # argument dictionaries are this context's own but whose bags may be shared, and the
+        # ids of the bags that are this context's own (a bag is cloned before it changes).
+        self._dirty: Optional[set] = None
+        self._shared: set = set()
+        self._cow: set = set()
+        self._owned: set = set()
+        self._rebuilt: Optional[tuple] = None  # copy()'s rebuild of the dirty families, for the next copy
 
     # -------------------------------------------------------------- facts
     def count(self, t: Node, mode: str) -> int:
@@ -153,19 +164,28 @@ class Context:
 
     def add_fact(self, t: Root, mode: str) -> bool:
         """Add a fact; returns True when the atom is new to the context (index updated)."""
+        self._canon = None
         lin, aff, pers = self.lin, self.aff, self.pers
         new = not (t in lin or t in aff or t in pers)  # self.present(t), inlined
         if mode == LIN:
-            lin[t] = lin.get(t, 0) + 1
+            n = lin.get(t, 0)
+            lin[t] = n + 1
         elif mode == AFF:
-            aff[t] = aff.get(t, 0) + 1
+            n = aff.get(t, 0)
+            aff[t] = n + 1
         else:
             if t in pers:
                 return False
             pers[t] = None
+            n = 0
+        if not n and self._dirty is not None:
+            self._dirty.add(t.head)  # a new key of a mode: the order facts() gives has changed
+            self._rebuilt = None
         if new:
             idx = self.index
             fam = t.head
+            if fam in self._shared:
+                self._unshare(fam)
             b = idx.get(fam)
             if b is None:
                 b = idx[fam] = Bag()
@@ -175,6 +195,9 @@ class Context:
                 per = self.by_arg.get(fam)
                 if per is None or len(per) < len(args):
                     per = self.by_arg[fam] = (per or []) + [{} for _ in range(len(args) - len(per or ()))]
+                if fam in self._cow:
+                    self._add_args_cow(t, per, args)
+                    return True
                 for d, a in zip(per, args):
                     b = d.get(a)
                     if b is None:
@@ -184,7 +207,22 @@ class Context:
                         b.add(t)
         return True
 
+    def _add_args_cow(self, t: Root, per: list, args: tuple) -> None:
+        owned = self._owned
+        for d, a in zip(per, args):
+            b = d.get(a)
+            if b is None:
+                b = d[a] = Bag()
+                b.items.append(t)
+                owned.add(id(b))
+            else:
+                if id(b) not in owned:
+                    b = d[a] = _clone(b)
+                    owned.add(id(b))
+                b.add(t)
+
     def remove_fact(self, t: Root, mode: str) -> None:
+        self._canon = None
         lin, aff = self.lin, self.aff
         if mode == LIN:
             n = lin[t] - 1
@@ -200,11 +238,17 @@ class Context:
             del aff[t]
         else:
             return  # persistent facts are never consumed
+        if self._dirty is not None:
+            self._dirty.add(t.head)
+            self._rebuilt = None
         if not (t in lin or t in aff or t in self.pers):  # self.present(t), inlined
             fam = t.head
+            if fam in self._shared:
+                self._unshare(fam)
             self.index[fam].discard(t)
             args = t.args
             if args:
+                owned = self._owned if fam in self._cow else None
                 for d, a in zip(self.by_arg[fam], args):
                     b = d[a]
                     if len(b.items) == 1:
@@ -213,7 +257,22 @@ class Context:
                         # and the index would otherwise keep a bag for every argument)
                         del d[a]
                     else:
+                        if owned is not None and id(b) not in owned:
+                            b = d[a] = _clone(b)
+                            owned.add(id(b))
                         b.discard(t)
+
+    def _unshare(self, fam) -> None:
+        """Give this context its own index entries for ``fam`` before they change: the
+        family's bag and argument dictionaries now, each argument bag when it changes."""
+        b = self.index.get(fam)
+        if b is not None:
+            self.index[fam] = _clone(b)
+        per = self.by_arg.get(fam)
+        if per is not None:
+            self.by_arg[fam] = [d.copy() for d in per]
+            self._cow.add(fam)
+        self._shared.discard(fam)
 
     def candidates(self, fam, position: int, arg: Node) -> Optional[Bag]:
         """The facts of family ``fam`` with ``arg`` at ``position`` (None: there are none)."""
@@ -225,6 +284,7 @@ class Context:
     # -------------------------------------------------------------- rules
     def add_rule(self, alts: list[Template], env: tuple, mode: str, source: Node,
                  uid: Optional[int] = None) -> CtxRule:
+        self._canon = None
         r = CtxRule(uid or next(_rule_ids), alts, env, mode, source)
         keys = []
         for t in alts:
@@ -245,6 +305,7 @@ class Context:
         return r
 
     def remove_rule(self, r: CtxRule) -> None:
+        self._canon = None
         del self.rules[r.uid]
         for k in r.keys:
             self.rule_index[k].discard(r.uid)
@@ -282,16 +343,133 @@ class Context:
     def size(self) -> int:
         return sum(self.lin.values()) + sum(self.aff.values()) + len(self.pers) + len(self.rules) + len(self.inert)
 
+    def _facts_in_order(self) -> list:
+        """Each fact once, in the order facts() first gives it."""
+        lin, aff, pers = self.lin, self.aff, self.pers
+        order = list(lin)
+        if aff:
+            order += [t for t in aff if t not in lin]
+        if pers:
+            order += [t for t in pers if t not in lin and t not in aff]
+        return order
+
     def copy(self) -> "Context":
-        c = Context()
-        for mode, t, n in self.facts():
-            for _ in range(n):
-                c.add_fact(t, mode)
+        """An independent copy whose bags are in the order re-adding the facts one by one
+        (linear, then affine, then persistent) would give.
+
+        That order, not this context's (a removal moves a bag's last item into the gap),
+        is what the explorer's order of enabled steps, hence its state numbering and
+        counterexamples, follows. The index entries of a family whose facts have not
+        changed since this context was itself made by ``copy`` are already in that order:
+        they are shared, and cloned by whichever context changes them first; only the
+        other families are rebuilt, once for all the copies made before the next change."""
+        c = Context.__new__(Context)
+        c.lin = self.lin.copy()
+        c.aff = self.aff.copy()
+        c.pers = self.pers.copy()
+        dirty = self._dirty
+        if dirty is None:
+            c.index, c.by_arg = _build_index(self._facts_in_order())
+            c._shared = set()
+        else:
+            index = dict(self.index)
+            by_arg = dict(self.by_arg)
+            shared = set(self.index)
+            if dirty:
+                shared.difference_update(dirty)
+                for fam in dirty:
+                    index.pop(fam, None)
+                    by_arg.pop(fam, None)
+                rebuilt = self._rebuilt
+                if rebuilt is None:
+                    # the dirty families in order, made once and shared by every copy of this context
+                    rank = {t: i for i, t in enumerate(self._facts_in_order())}
+                    redo = []
+                    for fam in dirty:
+                        b = self.index.get(fam)
+                        if b is not None:
+                            redo.extend(b.items)
+                    redo.sort(key=rank.__getitem__)
+                    rebuilt = self._rebuilt = _build_index(redo)
+                index.update(rebuilt[0])
+                by_arg.update(rebuilt[1])
+            self._shared.update(shared)
+            self._owned.clear()  # the bags this context owned may now be the copy's too
+            c.index = index
+            c.by_arg = by_arg
+            c._shared = set(index)
+        c._dirty = set()
+        c._cow = set()
+        c._owned = set()
+        c._rebuilt = None
+        rules: dict = {}
+        rule_index: dict = {}
         for r in self.rules.values():
-            c.add_rule(r.alts, r.env, r.mode, r.source, r.uid)
+            rules[r.uid] = CtxRule(r.uid, r.alts, r.env, r.mode, r.source, r.keys)
+            for k in r.keys:
+                b = rule_index.get(k)
+                if b is None:
+                    b = rule_index[k] = Bag()
+                b.add(r.uid)
+        c.rules = rules
+        c.rule_index = rule_index
         c.inert = list(self.inert)
         c.implicit = self.implicit
+        c._canon = None
         return c
+
+
+def _clone(b: Bag) -> Bag:
+    c = _new_bag(Bag)
+    c.items = b.items.copy()
+    c.pos = b.pos.copy() if b.pos is not None else None
+    return c
+
+
+_new_bag = Bag.__new__
+
+
+def _build_index(order: list) -> tuple[dict, dict]:
+    """``index`` and ``by_arg`` for distinct facts added in the order given (as add_fact would
+    build them, without its membership tests)."""
+    index: dict = {}
+    by_arg: dict = {}
+    big: list = []  # bags past Bag.SMALL: they get their position dictionary at the end
+    new_bag = _new_bag
+    small1 = Bag.SMALL + 1
+    for t in order:
+        fam = t.head
+        b = index.get(fam)
+        if b is None:
+            b = index[fam] = new_bag(Bag)
+            b.items = [t]
+            b.pos = None
+        else:
+            items = b.items
+            items.append(t)
+            if len(items) == small1:
+                big.append(b)
+        args = t.args
+        if args:
+            per = by_arg.get(fam)
+            if per is None:
+                per = by_arg[fam] = [{} for _ in args]
+            elif len(per) < len(args):
+                per.extend({} for _ in range(len(args) - len(per)))
+            for d, a in zip(per, args):
+                b = d.get(a)
+                if b is None:
+                    b = d[a] = new_bag(Bag)
+                    b.items = [t]
+                    b.pos = None
+                else:
+                    items = b.items
+                    items.append(t)
+                    if len(items) == small1:
+                        big.append(b)
+    for b in big:
+        b.pos = {y: i for i, y in enumerate(b.items)}
+    return index, by_arg
 
 
 def _wake_key(pattern: Node, env: tuple):

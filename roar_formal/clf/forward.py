@@ -22,7 +22,7 @@ from typing import Callable, Iterator, Optional
 from .builtins import BUILTINS
 from .context import Context, CtxRule
 from .rules import AFF, LIN, PERS, Template, positive_parts
-from .terms import BVar, Lam, Meta, Node, Param, Root, Top, apply, subst, _map_bvars, bvar
+from .terms import BVar, Const, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, _map_bvars, bvar
 
 # ------------------------------------------------------------------ matching
 
@@ -601,29 +601,260 @@ class Choice:
 
 def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prover] = None,
                   first_only: bool = False) -> Iterator[Choice]:
-    """Every distinct enabled step of ``ctx`` (all rules, all matches, all fact modes)."""
+    """Every distinct enabled step of ``ctx`` (all rules, all matches, all fact modes).
+
+    A template is tried only if every rigid path its premises require (see
+    :func:`_rigid_paths`) occurs in some fact of the context: most of a compiled
+    program's rules wait for a fact with a given constant a level or two down, and
+    ruling them out this way costs a set inclusion instead of a failed match. The
+    templates that remain are tried in the given order, so the steps' order is
+    unchanged."""
     seen: set = set()
+    paths = _context_paths(ctx)
     for t in templates:
         if not t.forward:
             continue
-        b = [None] * t.nslots
-        for consumed in find_matches(ctx, t, b, -1, prover, all_modes=True):
-            c = Choice(t, None, tuple(b), tuple(consumed))
-            key = (id(t), c.bindings, _multiset_key(c.consumed))
+        need = t.__dict__.get("_rigid")
+        if need is None:
+            need = t._rigid = _template_paths(t)
+        if not need <= paths:
+            continue
+        for bindings, consumed in all_matches(ctx, t, [None] * t.nslots, prover, first_only):
+            key = (id(t), bindings, _multiset_key(consumed))
             if key not in seen:
                 seen.add(key)
-                yield c
+                yield Choice(t, None, bindings, consumed)
                 if first_only:
                     return
     for r in list(ctx.rules.values()):
         for t in r.alts:
             if not t.forward:
                 continue
-            b = list(r.env)
-            for consumed in find_matches(ctx, t, b, -1, prover, all_modes=True):
-                yield Choice(t, r.uid, tuple(b), tuple(consumed))
+            for bindings, consumed in all_matches(ctx, t, list(r.env), prover, first_only):
+                yield Choice(t, r.uid, bindings, consumed)
                 if first_only:
                     return
+
+
+def all_matches(ctx: Context, tpl: Template, b: list, prover: Optional[Prover] = None,
+                first_only: bool = False) -> list[tuple[tuple, tuple]]:
+    """``(bindings, consumption)`` of every match, in the order ``find_matches(ctx, tpl, b,
+    -1, prover, all_modes=True)`` yields them (the first one only if ``first_only``).
+
+    The same search (the remaining context premise with the fewest candidates first,
+    candidates in bag order, every mode a fact can serve in, then the proved premises
+    in order), over a per-template plan of each premise's arguments as in
+    :func:`first_match` and collecting the matches instead of suspending a generator
+    per premise: the explorer enumerates every match of every state."""
+    plan = tpl.__dict__.get("_all_plan")
+    if plan is None:
+        plan = tpl._all_plan = _all_plan(tpl)
+    ctx_plan, back = plan
+    if back and prover is None:
+        return []
+    out: list = []
+    _all(ctx_plan, len(ctx_plan), [False] * len(ctx_plan), b, [], [], ctx, tpl, back, prover, out, first_only)
+    return out
+
+
+def _all_plan(tpl: Template) -> tuple:
+    """(per context premise: (serve modes, family, arity, ((position, kind, value), ...)),
+    the proved premises)."""
+    plan = []
+    back = []
+    for p in tpl.premises:
+        if p.backward:
+            back.append(p)
+            continue
+        pat = p.pattern
+        args = []
+        for j, a in enumerate(pat.args):
+            if not a.metas:
+                args.append((j, _PATTERN if a.maxb else _CONST, a))
+            elif type(a) is Root and not a.args and type(a.head) is Meta:
+                args.append((j, _SLOT, a.head.index))
+            else:
+                args.append((j, _PATTERN, a))
+        plan.append((_SERVE[p.mode], pat.head, len(pat.args), tuple(args)))
+    return tuple(plan), tuple(back)
+
+
+def _all(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only) -> bool:
+    """Extend the current partial match by the remaining context premises; True to stop."""
+    if not left:
+        if back:
+            return _all_back(0, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
+        out.append((tuple(b), tuple(consumed)))
+        return first_only
+    # the remaining premise with the fewest candidates (the first on ties): _most_selective
+    index = ctx.index
+    by_arg = ctx.by_arg
+    best = -1
+    best_bag = None
+    best_n = 0
+    i = -1
+    for _modes, fam, _arity, args in plan:
+        i += 1
+        if done[i]:
+            continue
+        bag = None
+        bag_n = 0
+        for j, kind, v in args:
+            if kind == _SLOT:
+                v = b[v]
+                if v is None:
+                    continue
+            elif kind == _PATTERN:
+                continue
+            per = by_arg.get(fam)
+            bag2 = per[j].get(v) if per is not None and j < len(per) else None
+            if bag2 is None:
+                return False
+            n2 = len(bag2.items)
+            if not n2:
+                return False
+            if bag is None or n2 < bag_n:
+                bag, bag_n = bag2, n2
+        if bag is None:
+            bag = index.get(fam)
+            if bag is None:
+                return False
+            bag_n = len(bag.items)
+            if not bag_n:
+                return False
+        if best < 0 or bag_n < best_n:
+            best, best_bag, best_n = i, bag, bag_n
+    modes, _fam, arity, args = plan[best]
+    done[best] = True
+    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
+    stop = False
+    for t in best_bag.items:
+        targs = t.args
+        if len(targs) != arity:
+            continue
+        for mode in modes:
+            # is one more copy of t left in this mode, after what this match used?
+            if mode == PERS:
+                if t not in pers:
+                    continue
+            else:
+                have = lin.get(t, 0) if mode == LIN else aff.get(t, 0)
+                if not have:
+                    continue
+                if consumed and have <= sum(1 for m, u in consumed if u is t and m == mode):
+                    continue
+            mark = len(trail)
+            ok = True
+            for j, kind, v in args:
+                a = targs[j]
+                if kind == _SLOT:
+                    w = b[v]
+                    if w is None:
+                        if a.maxb:
+                            ok = False
+                            break
+                        b[v] = a
+                        trail.append(v)
+                    elif w is not a:
+                        ok = False
+                        break
+                elif kind == _CONST:
+                    if a is not v:
+                        ok = False
+                        break
+                elif not match(v, a, b, trail):
+                    ok = False
+                    break
+            if ok:
+                consumed.append((mode, t))
+                stop = _all(plan, left - 1, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only)
+                consumed.pop()
+            while len(trail) > mark:
+                b[trail.pop()] = None
+            if stop:
+                break
+        if stop:
+            break
+    done[best] = False
+    return stop
+
+
+def _all_back(k, back, b, consumed, trail, ctx, tpl, prover, out, first_only) -> bool:
+    if k == len(back):
+        out.append((tuple(b), tuple(consumed)))
+        return first_only
+    mark = len(trail)
+    stop = False
+    proofs = prover(ctx, tpl, back[k], b, trail)
+    try:
+        for _ in proofs:
+            if _all_back(k + 1, back, b, consumed, trail, ctx, tpl, prover, out, first_only):
+                stop = True
+                break
+    finally:
+        if hasattr(proofs, "close"):
+            proofs.close()
+    while len(trail) > mark:
+        b[trail.pop()] = None
+    return stop
+
+
+#: how deep below a premise's (or fact's) arguments rigid heads are recorded
+_PATH_DEPTH = 2
+
+#: fact -> its rigid paths (facts are hash-consed and recur from state to state); the paths
+#: themselves are interned, as most facts share them. Emptied when it reaches _PATHS_MAX facts.
+_fact_paths: dict = {}
+_path_intern: dict = {}
+_PATHS_MAX = 500_000
+
+
+def _rigid_paths(t: Node, prefix: tuple, depth: int, out: list) -> None:
+    """Append ``prefix + (j, head)`` for each argument ``j`` of ``t`` whose head is a constant
+    or literal, and so on below it, ``depth`` levels down. Matching a pattern against a
+    fact compares such heads by identity, so a fact a pattern matches has every rigid path
+    of the pattern."""
+    j = 0
+    for a in t.args:
+        if type(a) is Root:
+            h = a.head
+            if type(h) is Const or type(h) is Lit:
+                p = prefix + (j, h)
+                out.append(p)
+                if depth > 1 and a.args:
+                    _rigid_paths(a, p, depth - 1, out)
+        j += 1
+
+
+def _template_paths(tpl: Template) -> frozenset:
+    """The rigid paths some fact of the context must have for ``tpl`` to match: the family
+    and the paths of each premise found in the context (proved premises add none)."""
+    out: list = []
+    for p in tpl.premises:
+        pat = p.pattern
+        if p.backward or type(pat) is not Root or type(pat.head) is not Const:
+            continue
+        out.append((pat.head,))
+        _rigid_paths(pat, (pat.head,), _PATH_DEPTH, out)
+    return frozenset(out)
+
+
+def _context_paths(ctx: Context) -> set:
+    """The rigid paths of every fact of ``ctx``, whatever its mode."""
+    out: set = set()
+    memo = _fact_paths
+    for d in (ctx.lin, ctx.aff, ctx.pers):
+        for t in d:
+            ps = memo.get(t)
+            if ps is None:
+                if len(memo) >= _PATHS_MAX:
+                    memo.clear()
+                    _path_intern.clear()
+                acc = [(t.head,)]
+                _rigid_paths(t, (t.head,), _PATH_DEPTH, acc)
+                ps = memo[t] = tuple([_path_intern.setdefault(p, p) for p in acc])
+            out.update(ps)
+    return out
 
 
 def _multiset_key(consumed) -> tuple:

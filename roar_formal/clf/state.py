@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import Optional
 
 from .context import Context
+from .rules import AFF, LIN, PERS
 from .terms import CanonParam, Lam, Node, Param, Root, params_of
 
 
@@ -57,11 +58,9 @@ def _rename(t: Node, ren: dict, memo: dict) -> Node:
     return r
 
 
-def _items(ctx: Context) -> list[tuple]:
-    """(kind, mode, payload tuple of terms or None, multiplicity) for every hypothesis."""
+def _other_items(ctx: Context) -> list[tuple]:
+    """(kind, mode, payload tuple of terms or None, multiplicity) for every rule and inert hypothesis."""
     items: list[tuple] = []
-    for mode, t, n in ctx.facts():
-        items.append(("f", mode, (t,), n))
     for r in ctx.rules.values():
         items.append(("r", r.mode, (id(r.alts[0]) if r.alts else 0,) + tuple(r.env), 1))
     for mode, t in ctx.inert:
@@ -69,58 +68,188 @@ def _items(ctx: Context) -> list[tuple]:
     return items
 
 
+#: Caches keyed by hash-consed terms (facts recur from state to state): a term's fresh
+#: names in params_of's order of discovery; its shape given the colours of those names;
+#: its renaming given their new names. Each is emptied when it reaches _MEMO_MAX entries.
+_params_memo: dict = {}
+_shape_memo: dict = {}
+_rename_memo: dict = {}
+_MEMO_MAX = 500_000
+
+
+def _params(t: Node) -> tuple:
+    r = _params_memo.get(t)
+    if r is None:
+        if len(_params_memo) >= _MEMO_MAX:
+            _params_memo.clear()
+        r = _params_memo[t] = tuple(params_of(t, {}))
+    return r
+
+
+def _shape_of(t: Node, ps: tuple, colour: dict, memo: dict) -> int:
+    """``_shape(t, colour, memo)``, which depends only on ``t`` and its names' colours."""
+    k = (t, colour[ps[0]]) if len(ps) == 1 else (t, tuple([colour[p] for p in ps]))
+    r = _shape_memo.get(k)
+    if r is None:
+        if len(_shape_memo) >= _MEMO_MAX:
+            _shape_memo.clear()
+        r = _shape_memo[k] = _shape(t, colour, memo)
+    return r
+
+
+def _rename_of(t: Node, ps: tuple, ren: dict, memo: dict) -> Node:
+    """``_rename(t, ren, memo)``, which depends only on ``t`` and its names' new names."""
+    k = (t, ren[ps[0]]) if len(ps) == 1 else (t, tuple([ren[p] for p in ps]))
+    r = _rename_memo.get(k)
+    if r is None:
+        if len(_rename_memo) >= _MEMO_MAX:
+            _rename_memo.clear()
+        r = _rename_memo[k] = _rename(t, ren, memo)
+    return r
+
+
 def canonical_key(ctx: Context, rounds: int = 3) -> tuple:
-    """A hashable key equal for contexts equal up to renaming of fresh names."""
-    items = _items(ctx)
+    """A hashable key equal for contexts equal up to renaming of fresh names.
+
+    Cached on the context until it changes (the explorer asks twice for each new
+    state). Hypotheses without fresh names take no part in the renaming: only the
+    others are coloured, sorted and renamed (a stable sort of a subset keeps the
+    subset's order, so the renaming is the one sorting every hypothesis gives)."""
+    if rounds == 3:
+        cached = getattr(ctx, "_canon", None)
+        # the context's mutators clear the cache; its inert list is appended to directly
+        if cached is not None and cached[0] is ctx.inert and cached[1] == len(ctx.inert):
+            return cached[2]
+    key = _canonical_key(ctx, rounds)
+    if rounds == 3:
+        ctx._canon = (ctx.inert, len(ctx.inert), key)
+    return key
+
+
+def _canonical_key(ctx: Context, rounds: int) -> tuple:
+    # Every hypothesis is (kind, mode, payload tuple of terms or None, multiplicity): a fact
+    # ("f", mode, (t,), n), a rule ("r", mode, (id of its first alternative, *env), 1), an
+    # inert one ("i", mode, (t,), 1), in this order. Those without fresh names go to
+    # ``static`` as (key entry, multiplicity); the others to ``pitems``, with
+    # ((payload position, its names), ...), the payload's shapes, its term if it is one
+    # and that term's name if it has one.
+    static: list = []
+    pitems: list[tuple] = []
     params: dict = {}
-    for _, _, payload, _ in items:
+    pmemo = _params_memo
+    for mode, d in ((LIN, ctx.lin), (AFF, ctx.aff), (PERS, ctx.pers)):
+        for t, n in d.items():
+            if mode == PERS:
+                n = 1
+            if t.maxp:
+                ps = pmemo.get(t)
+                if ps is None:
+                    ps = _params(t)
+                pitems.append(("f", mode, (t,), n, ((0, ps),), [None], t, ps[0] if len(ps) == 1 else None))
+                for p in ps:
+                    params[p] = None
+            else:
+                static.append((("f", mode, (t,)), n))
+    for it in _other_items(ctx):
+        payload = it[2]
+        pl = []
+        pos = 0
         for v in payload:
-            if isinstance(v, Node):
-                params_of(v, params)
+            if isinstance(v, Node) and v.maxp:
+                ps = _params(v)
+                pl.append((pos, ps))
+                for p in ps:
+                    params[p] = None
+            pos += 1
+        if not pl:
+            static.append((it[:3], it[3]))
+        elif len(payload) == 1:
+            ps = pl[0][1]
+            pitems.append(it + (tuple(pl), [None], payload[0], ps[0] if len(ps) == 1 else None))
+        else:
+            pitems.append(it + (tuple(pl), [None] * len(payload), None, None))
+    counts: dict = {}
+    for k, n in static:
+        counts[k] = counts.get(k, 0) + n
     if not params:
-        return _key(items)
-    colour = {p: 0 for p in params}
+        return frozenset(counts.items()),
+    colour = dict.fromkeys(params, 0)
+    ncolours = 1
+    smemo = _shape_memo
     for _ in range(rounds):
         memo: dict = {}
         occ: dict = {p: [] for p in params}
-        for kind, mode, payload, n in items:
-            sh = hash((kind, mode, n, tuple(_shape(v, colour, memo) if isinstance(v, Node) else v for v in payload)))
-            for pos, v in enumerate(payload):
-                if isinstance(v, Node) and v.maxp:
-                    found: dict = {}
-                    params_of(v, found)
-                    for p in found:
-                        occ[p].append((sh, pos))
+        for kind, mode, payload, n, pl, shapes, one, p0 in pitems:
+            if p0 is not None:  # one term, one name: _shape_of inlined
+                sh = smemo.get((one, colour[p0]))
+                if sh is None:
+                    sh = _shape_of(one, (p0,), colour, memo)
+                shapes[0] = sh
+                occ[p0].append((hash((kind, mode, n, (sh,))), 0))
+                continue
+            if one is not None:
+                ps = pl[0][1]
+                sh = shapes[0] = _shape_of(one, ps, colour, memo)
+                sh = hash((kind, mode, n, (sh,)))
+                for p in ps:
+                    occ[p].append((sh, 0))
+                continue
+            _shapes(payload, pl, shapes, colour, memo)
+            sh = hash((kind, mode, n, tuple(shapes)))
+            for pos, ps in pl:
+                for p in ps:
+                    occ[p].append((sh, pos))
         new = {p: hash(tuple(sorted(o))) for p, o in occ.items()}
-        stable = len(set(new.values())) == len(set(colour.values()))
+        nnew = len(set(new.values()))
+        stable = nnew == ncolours
         colour = new
-        if stable or len(set(colour.values())) == len(colour):
+        ncolours = nnew
+        if stable or nnew == len(colour):
             break   # the partition no longer refines (or every parameter is told apart)
     memo = {}
-    order = sorted(items, key=lambda it: (it[0], it[1], it[3], tuple(
-        _shape(v, colour, memo) if isinstance(v, Node) else (v if v is not None else -1) for v in it[2])))
+    for kind, mode, payload, n, pl, shapes, one, p0 in pitems:
+        if p0 is not None:
+            sh = smemo.get((one, colour[p0]))
+            shapes[0] = sh if sh is not None else _shape_of(one, (p0,), colour, memo)
+            continue
+        if one is not None:
+            shapes[0] = _shape_of(one, pl[0][1], colour, memo)
+            continue
+        _shapes(payload, pl, shapes, colour, memo)
+        for i, v in enumerate(payload):
+            if v is None:
+                shapes[i] = -1
+    order = sorted(pitems, key=lambda it: (it[0], it[1], it[3], tuple(it[5])))
     ren: dict = {}
-    for _, _, payload, _ in order:
-        for v in payload:
-            if isinstance(v, Node) and v.maxp:
-                found = {}
-                params_of(v, found)
-                for p in sorted(found, key=lambda p: colour[p]):
-                    if p not in ren:
-                        ren[p] = CanonParam(len(ren))
+    for it in order:
+        for _pos, ps in it[4]:
+            for p in (sorted(ps, key=colour.__getitem__) if len(ps) > 1 else ps):
+                if p not in ren:
+                    ren[p] = CanonParam(len(ren))
     rmemo: dict = {}
-    renamed = [(k, m, tuple(_rename(v, ren, rmemo) if isinstance(v, Node) else v for v in payload), n)
-               for k, m, payload, n in items]
-    return _key(renamed)
+    rnmemo = _rename_memo
+    for kind, mode, payload, n, pl, shapes, one, p0 in pitems:
+        if p0 is not None:
+            r = rnmemo.get((one, ren[p0]))
+            payload = (r if r is not None else _rename_of(one, (p0,), ren, rmemo),)
+        elif one is not None:
+            payload = (_rename_of(one, pl[0][1], ren, rmemo),)
+        else:
+            payload = tuple([_rename_of(v, _params(v), ren, rmemo) if isinstance(v, Node) and v.maxp else v
+                             for v in payload])
+        k = (kind, mode, payload)
+        counts[k] = counts.get(k, 0) + n
+    return frozenset(counts.items()),
 
 
-def _key(items: list[tuple]) -> tuple:
-    from collections import Counter
-
-    c: Counter = Counter()
-    for kind, mode, payload, n in items:
-        c[(kind, mode, payload)] += n
-    return frozenset(c.items()),
+def _shapes(payload: tuple, pl: tuple, shapes: list, colour: dict, memo: dict) -> None:
+    """Fill ``shapes`` with ``_shape`` of each term of ``payload`` (other entries as they are)."""
+    j = 0
+    for v in payload:
+        shapes[j] = v if not isinstance(v, Node) else (hash(v) if not v.maxp else None)
+        j += 1
+    for pos, ps in pl:
+        shapes[pos] = _shape_of(payload[pos], ps, colour, memo)
 
 
 def same_state(a: Context, b: Context) -> bool:

@@ -11,7 +11,7 @@ that runs out gives an honest "incomplete" verdict, never "verified".
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Optional
 
@@ -44,7 +44,7 @@ class JobResult:
     memory_mb: float
     mismatches: list[str] = field(default_factory=list)
     program: Optional[Program] = None
-    reduction: str = "off"  # 'on', 'off', 'off for livelock', 'not used by the ground backend'
+    reduction: str = "off"  # 'on', 'off' or 'not used by the ground backend'
 
     @property
     def ok(self) -> bool:
@@ -122,6 +122,7 @@ def make_never(program_text: str, file: str, patterns: list) -> Callable[[Contex
                 return f"a reachable state matches the forbidden pattern {patterns[int(t.name[6:])][0]!r}"
         return None
 
+    bad.templates = tuple(tpls)  # the reduction keeps these rules in every stubborn set
     return bad
 
 
@@ -154,26 +155,15 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
         if missing:
             raise RoarError(f"{job.path}: [sequential-achievement] names recipes with no 'make A; make B' pair: "
                             f"{', '.join(sorted(missing))}")
+    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check else None
     reduction = "off"
     if job.reduction:
-        if set(props.check) <= {"deadlock"}:
-            reduction = "on"
-            options.reduction = True
-        else:
-            reduction = "off (deadlock only)"
-    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check else None
-    system = RoarSystem(model, start, options, pairs)
-    explorer = Explorer(system, job.search, on_progress)
+        reduction = "on"
+        _reduction_options(options, props, never)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
                              "[deadlock] accept") if props.accept else roar_final
-    limit = job.budget.max_states
-    k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
-    while True:
-        remaining = None
-        if job.budget.max_seconds is not None:
-            remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
-        graph = explorer.run(Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb))
-        states = explorer.states
+
+    def decide(graph: StateGraph, states: list, system: RoarSystem) -> dict[str, Verdict]:
         verdicts: dict[str, Verdict] = {}
         for p in props.check:
             if p == "deadlock":
@@ -194,21 +184,86 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
                     return (f"{w[0]} is written by the where clauses of two live constraints: "
                             f"{' and '.join(w[1])}") if w else None
                 verdicts[p] = check_states(graph, p, bad)
-        if graph.complete or all(v.violated for v in verdicts.values()):
-            break
-        if "state budget" not in graph.stop_reason or (limit is not None and k >= limit):
-            break
-        k = k * 4 if limit is None else min(k * 4, limit)
-    if job.reduction:
-        for v in verdicts.values():
-            v.message += " (partial-order reduction)" if reduction == "on" else f" (reduction {reduction})"
-            v.details["reduction"] = reduction
+        return verdicts
+
+    def explore(opts: Options):
+        ex = Explorer(RoarSystem(model, start, opts, pairs), job.search, on_progress)
+        return ex, lambda g: decide(g, ex.states, ex.system)
+
+    explorer, graph, verdicts = _search(job, t0, explore, options)
+    _mark_reduction(job, verdicts, reduction)
     mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
                   if verdicts[p].status != want]
     res = JobResult(job, verdicts, graph, "general", time.perf_counter() - t0, rss_mb(), mismatches, program,
                     reduction)
     res.roar = (model, start, explorer)
     return res
+
+
+def _reduction_options(options: Options, props, never) -> None:
+    """Partial-order reduction for every property the job checks (see reduction.py): an
+    invariant's forbidden patterns stay in every stubborn set, the families a monitor or a
+    Python-computed invariant reads make their rules visible, progress steps are visible."""
+    from ..clf.terms import Const
+    from ..roar.explore import EXCLUSIVE_WRITES_FAMILIES, MONITOR_FAMILIES
+    options.reduction = True
+    options.observers = tuple(never.templates) if never is not None else ()
+    visible: set = set()
+    if "sequential-achievement" in props.check:
+        visible |= MONITOR_FAMILIES
+    if "exclusive-writes" in props.check:
+        visible |= EXCLUSIVE_WRITES_FAMILIES
+    options.visible_families = frozenset(Const(f) for f in visible)
+
+
+def _search(job: Job, t0: float, explore, options: Options):
+    """Explore in growing rounds until the graph is complete, every property is violated, or
+    a budget runs out; returns (explorer, graph, verdicts).
+
+    ``explore(options)`` makes an explorer and the function deciding the verdicts on its
+    graph. Under reduction with weak fairness, a livelock verdict of "holds" is confirmed on
+    the unreduced graph: a reduced graph keeps every fair cycle it shows (fairness is judged
+    with every enabled group, expanded or not) but may miss one (docs/checking.md)."""
+    explorer, decide = explore(options)
+    graph, verdicts = _rounds(job, t0, explorer, decide)
+    lv = verdicts.get("livelock")
+    if options.reduction and lv is not None and lv.status == "holds" and options.fairness != "none":
+        full_options = replace(options, reduction=False)
+        ex2, decide2 = explore(full_options)
+        graph2, verdicts2 = _rounds(job, t0, ex2, decide2)
+        lv2 = verdicts2["livelock"]
+        if lv2.status == "holds":
+            lv.message += f"; confirmed without reduction ({graph2.n_states:,} states)"
+            lv.details["confirmed_states"] = graph2.n_states
+        else:
+            # keep one graph for every counterexample: the unreduced one
+            for v in verdicts2.values():
+                v.details["reduction"] = "missed a fair livelock; verdicts from the unreduced graph"
+            return ex2, graph2, verdicts2
+    return explorer, graph, verdicts
+
+
+def _rounds(job: Job, t0: float, explorer, decide):
+    limit = job.budget.max_states
+    k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
+    while True:
+        remaining = None
+        if job.budget.max_seconds is not None:
+            remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
+        graph = explorer.run(Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb))
+        verdicts = decide(graph)
+        if graph.complete or all(v.violated for v in verdicts.values()):
+            return graph, verdicts
+        if "state budget" not in graph.stop_reason or (limit is not None and k >= limit):
+            return graph, verdicts
+        k = k * 4 if limit is None else min(k * 4, limit)
+
+
+def _mark_reduction(job: Job, verdicts: dict, reduction: str) -> None:
+    if job.reduction:
+        for v in verdicts.values():
+            v.message += " (partial-order reduction)" if reduction == "on" else f" (reduction {reduction})"
+            v.details.setdefault("reduction", reduction)
 
 
 def _run_job(job: Job, on_progress) -> JobResult:
@@ -230,33 +285,13 @@ def _run_job(job: Job, on_progress) -> JobResult:
     backend = "ground" if ground_model is not None else "general"
     reduction = "off"
     if job.reduction:
-        # the reduced graph keeps every quiescent state but not the steps each state enables,
-        # which weak fairness reads: with livelock checked the reduction is off
         if backend == "ground":
             reduction = "not used by the ground backend"
-        elif "livelock" in props.check:
-            reduction = "off for livelock"
-        elif set(props.check) - {"deadlock"}:
-            reduction = "off (deadlock only)"
         else:
             reduction = "on"
-            options.reduction = True
-    general = None if ground_model else Explorer(ClfSystem(program, start, options), job.search, on_progress)
-    limit = job.budget.max_states
-    k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
-    verdicts: dict[str, Verdict] = {}
-    while True:
-        remaining = None
-        if job.budget.max_seconds is not None:
-            remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
-        budget = Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb)
-        if ground_model is not None:
-            gx = GroundExplorer(ground_model, on_progress)
-            graph = gx.run(budget)
-            state_of = lambda sid, gx=gx: _row_context(ground_model, gx.row_of(sid))  # noqa: E731
-        else:
-            graph = general.run(budget)
-            state_of = lambda sid: general.states[sid]  # noqa: E731
+            _reduction_options(options, props, never)
+
+    def decide(graph: StateGraph, state_of) -> dict[str, Verdict]:
         accept = (lambda sid: accept_ctx(state_of(sid))) if accept_ctx else None
         verdicts = {}
         for p in props.check:
@@ -264,15 +299,18 @@ def _run_job(job: Job, on_progress) -> JobResult:
                 verdicts[p] = check_states(graph, p, lambda sid: never(state_of(sid)))
             else:
                 verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else check_livelock(graph)
-        if graph.complete or all(v.violated for v in verdicts.values()):
-            break
-        if "state budget" not in graph.stop_reason or (limit is not None and k >= limit):
-            break
-        k = k * 4 if limit is None else min(k * 4, limit)
-    if job.reduction:
-        for v in verdicts.values():
-            v.message += f" (reduction {reduction})" if reduction != "on" else " (partial-order reduction)"
-            v.details["reduction"] = reduction
+        return verdicts
+
+    if ground_model is not None:
+        rounds = _GroundRounds(ground_model, on_progress)
+        graph, verdicts = _rounds(job, t0, rounds, lambda g: decide(g, rounds.state_of))
+    else:
+        def explore(opts: Options):
+            ex = Explorer(ClfSystem(program, start, opts), job.search, on_progress)
+            return ex, lambda g: decide(g, lambda sid: ex.states[sid])
+
+        _explorer, graph, verdicts = _search(job, t0, explore, options)
+    _mark_reduction(job, verdicts, reduction)
     mismatches = []
     for p, want in job.expect.items():
         got = verdicts[p].status
@@ -280,6 +318,22 @@ def _run_job(job: Job, on_progress) -> JobResult:
             mismatches.append(f"{p}: expected {want}, got {got}")
     return JobResult(job, verdicts, graph, backend, time.perf_counter() - t0, rss_mb(), mismatches, program,
                      reduction)
+
+
+class _GroundRounds:
+    """The ground backend in rounds: each round searches afresh with the larger budget."""
+
+    def __init__(self, model: GroundModel, on_progress) -> None:
+        self.model = model
+        self.on_progress = on_progress
+        self.gx: Optional[GroundExplorer] = None
+
+    def run(self, budget: Budget) -> StateGraph:
+        self.gx = GroundExplorer(self.model, self.on_progress)
+        return self.gx.run(budget)
+
+    def state_of(self, sid: int) -> Context:
+        return _row_context(self.model, self.gx.row_of(sid))
 
 
 def _row_context(model: GroundModel, row) -> Context:

@@ -53,6 +53,9 @@ class StateGraph:
     progress: array = field(default_factory=lambda: array("b"))
     labels: Interner = field(default_factory=Interner)
     groups: Interner = field(default_factory=Interner)
+    # groups enabled at a state by steps a reduced expansion left out: state id -> group ids
+    # (weak fairness reads every enabled group, expanded or not)
+    hidden_enabled: dict = field(default_factory=dict)
     complete: bool = False  # every reachable state was expanded
     stop_reason: str = ""
     describe_state: Optional[Callable[[int], list[str]]] = None  # state id -> printable lines
@@ -80,6 +83,22 @@ class StateGraph:
         self.group.append(self.groups(group))
         self.progress.append(1 if progress else 0)
         return len(self.src) - 1
+
+    def add_enabled(self, s: int, groups) -> None:
+        """Record groups enabled at ``s`` by steps that were not expanded."""
+        ids = {self.groups(gname) for gname in groups}
+        if ids:
+            self.hidden_enabled.setdefault(s, set()).update(ids)
+
+    def enabled_pairs(self, n_groups: int) -> np.ndarray:
+        """``state * n_groups + group`` for every group enabled at an expanded state: by an
+        edge, or by a step a reduced expansion left out."""
+        a = self.arrays()
+        pairs = a["src"] * n_groups + a["group"]
+        if self.hidden_enabled:
+            extra = [s * n_groups + gid for s, gids in self.hidden_enabled.items() for gid in gids]
+            pairs = np.concatenate([pairs, np.asarray(extra, dtype=np.int64)])
+        return np.unique(pairs)
 
     # ------------------------------------------------------------ views
     def arrays(self) -> dict[str, np.ndarray]:

@@ -50,7 +50,7 @@ class Job:
     backend: str = "auto"
     search: str = "bfs"
     canonical: bool = True
-    reduction: bool = False  # partial-order reduction (general backend, deadlock only)
+    reduction: bool = False  # partial-order reduction (general backend, every property)
     spec: Optional[Path] = None        # a ROAR spec (instead of a .clf model)
     request: Optional[str] = None      # the request the spec is run on
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)

@@ -129,16 +129,17 @@ def check_livelock(g: StateGraph) -> Verdict:
     cand_edges = np.flatnonzero(inner)[internal]
     if len(cand_edges) == 0:
         return _no_livelock(g)
-    # Per candidate component: groups enabled in every member state (any outgoing edge,
-    # progress or not) must all move inside it. Vectorised over all components at once.
+    # Per candidate component: groups enabled in every member state (by an outgoing edge,
+    # progress or not, or by a step a reduced expansion left out) must all move inside it.
+    # Vectorised over all components at once.
     n_groups = max(1, len(g.groups.names))
     cand_comps = np.unique(comp[isrc[internal]])
     is_cand = np.zeros(comp.max() + 1, dtype=bool)
     is_cand[cand_comps] = True
     member = expanded & is_cand[comp]
     size = np.bincount(comp[member], minlength=len(is_cand))
-    em = member[src]
-    pairs = np.unique(src[em] * n_groups + grp[em])
+    pairs = g.enabled_pairs(n_groups)
+    pairs = pairs[member[pairs // n_groups]]
     pc = comp[pairs // n_groups]
     always = np.bincount(pc * n_groups + pairs % n_groups, minlength=len(is_cand) * n_groups)
     always = always.reshape(len(is_cand), n_groups) == size[:, None]
@@ -208,9 +209,9 @@ def _tour(g: StateGraph, entry: int, edges_c: np.ndarray, required: set, src, ds
                     q.append(v)
         raise AssertionError("component is not strongly connected")
 
-    # enabled groups of each member state (any outgoing edge counts)
+    # enabled groups of each member state (an outgoing edge, or a step a reduced expansion left out)
     members = set(adj)
-    enabled: dict[int, set] = {m: set() for m in members}
+    enabled: dict[int, set] = {m: set(g.hidden_enabled.get(m, ())) for m in members}
     for e in np.flatnonzero(np.isin(src, np.fromiter(members, dtype=np.int64))).tolist():
         enabled[int(src[e])].add(int(grp[e]))
     internal_groups = {int(grp[e]) for e in edges_c.tolist()}

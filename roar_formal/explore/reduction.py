@@ -48,30 +48,44 @@ graph, and the reduced graph has no other states than the full one. Hence the
 deadlock verdict is the same; the counterexample is a real run but need not be
 a shortest one of the full graph.
 
-Overlap tests are conservative: a pattern argument that is not a ground term
-or a bound slot (a compound term with variables, a fresh name) matches
-anything. Where the analysis does not apply, the state is expanded fully: when
-the context holds rules (continuations), or the program has rules with
-premises proved by backward chaining or rules in their heads. The seed that
-gives the fewest enabled steps wins; a set that covers every enabled step is
-no reduction.
+Further conditions (see ``docs/checking.md``, "Reductions"):
 
-The explorer adds the cycle proviso (a reduced expansion that reaches an
-already visited state is replaced by the full one) and the job runner turns
-the reduction off when livelock is checked: weak fairness is judged from the
-steps each state enables, which a reduced graph does not show (see
-``docs/checking.md``, "Reductions").
+(C) a premise proved by backward chaining reads the clauses and the
+    persistent facts of its family: the rules adding such facts join the set
+    with a step that has one, and a step adding one brings in the rules
+    whose proofs read it;
+observers: the rules of an invariant (patterns that must never match) are
+    in every set, so by (B) nothing outside the set can make them match
+    (the system where such a rule stops everything has the violations as the
+    states before its deadlocks, which D1 + D2 keep);
+visible families: every rule touching a family a Python-computed property
+    or monitor reads is in every set;
+progress steps are visible: a set with an enabled one is given up (full
+    expansion); with the explorer's cycle proviso this keeps every cycle
+    without progress. Weak fairness is judged with the groups of the steps a
+    reduced expansion left out (``StateGraph.hidden_enabled``); a "holds"
+    under weak fairness is confirmed without reduction by the job runner.
+
+Overlap tests are conservative (slots stand for anything; repeated slots are
+not compared). Where the analysis does not apply (rules in the context, a
+premise proved from a goal that is not an atom), the state is expanded
+fully, and so it is when the closure grows past ``max_abstract`` abstract
+steps. At most ``max_seeds`` seeds are tried; the smallest set wins, and a
+set that covers every enabled step is no reduction.
 """
 
 from __future__ import annotations
 
 from typing import Optional
 
+from ..clf.builtins import BUILTINS
 from ..clf.context import Context
 from ..clf.rules import AFF, LIN, PERS, Template
-from ..clf.terms import Meta, Node, Root
+from ..clf.forward import match
+from ..clf.terms import Const, Lam, Meta, Node, Root
 
-# An abstract fact: (family, args) where each arg is a ground Node or None ("any").
+# An abstract fact: (family, args) where each arg is a ground Node, a term whose remaining
+# slots (Metas) stand for anything, or None ("any").
 _ANY = None
 
 
@@ -84,54 +98,155 @@ def _abstract(pattern: Node, binding: dict) -> tuple:
         elif type(a) is Root and not a.args and type(a.head) is Meta:
             args.append(binding.get(a.head.index, _ANY))
         else:
-            args.append(_ANY)
+            args.append(_partial(a, binding))
     return pattern.head, tuple(args)
+
+
+def _partial(t: Node, binding: dict) -> Node:
+    """``t`` with the bound slots replaced by their values (the others stay wildcards)."""
+    if not t.metas:
+        return t
+    if type(t) is Root:
+        h = t.head
+        if type(h) is Meta:
+            if not t.args and h.index in binding:
+                return binding[h.index]
+            return t  # unbound, or applied (higher-order): a wildcard
+        return Root(h, tuple(_partial(a, binding) for a in t.args))
+    return t
+
+
+def _wild(t: Node) -> bool:
+    return type(t) is Root and type(t.head) is Meta
+
+
+def _overlap(x: Node, y: Node) -> bool:
+    """Could the two terms have a common instance (slots on either side standing for
+    anything; repeated slots are not checked against each other: conservative)?"""
+    if x is y or _wild(x) or _wild(y):
+        return True
+    tx, ty = type(x), type(y)
+    if tx is Root and ty is Root:
+        if x.head is not y.head or len(x.args) != len(y.args):
+            return False  # heads are interned constants, names or bound variables
+        return all(_overlap(a, b) for a, b in zip(x.args, y.args))
+    if tx is Lam and ty is Lam:
+        return _overlap(x.body, y.body)
+    return bool(x.metas or y.metas)  # other shapes: only identical ground terms are equal
 
 
 def _bind(pattern: Node, fact_args: tuple, fresh: frozenset = frozenset()) -> Optional[dict]:
     """The slot binding under which ``pattern`` may produce or match an abstract fact with
-    these arguments, or None when they cannot overlap."""
+    these arguments, or None when they cannot overlap. A ``fresh`` slot holds a name made
+    by the step itself, which equals no term given now."""
     if len(pattern.args) != len(fact_args):
         return None
     b: dict = {}
     for a, v in zip(pattern.args, fact_args):
+        if v is _ANY:
+            continue
         if not a.metas:
-            if a.maxb or v is _ANY:
+            if a.maxb:
                 continue
-            if a is not v:
+            if v.metas:
+                if not _overlap(a, v):
+                    return None
+            elif a is not v:
                 return None
         elif type(a) is Root and not a.args and type(a.head) is Meta:
             i = a.head.index
-            if v is _ANY or i in fresh:
+            if i in fresh:
+                if not v.metas:
+                    return None
+                continue
+            if v.metas:
                 continue
             w = b.get(i)
             if w is None:
                 b[i] = v
             elif w is not v:
                 return None
+        elif not _overlap(a, v):
+            return None
     return b
 
 
-class Reducer:
-    """Stubborn-set computation for one program (static tables built once)."""
+def _match_binding(tpl: Template, pattern: Node, fact: Node) -> Optional[dict]:
+    """The slots a consuming premise binds when it matches ``fact``, or None if it cannot."""
+    b: list = [None] * max(tpl.nslots, 1)
+    trail: list = []
+    if not match(pattern, fact, b, trail):
+        return None
+    return {i: b[i] for i in trail}
 
-    def __init__(self, templates: list[Template]):
+
+def _nested(tpl: Template):
+    """The templates of the rules ``tpl``'s head puts in the context, at any depth."""
+    for a in tpl.head:
+        if a[0] == "rule":
+            for alt in a[2]:
+                yield alt
+                yield from _nested(alt)
+
+
+class Reducer:
+    """Stubborn-set computation for one program (static tables built once).
+
+    ``observers`` are the rules a safety property reads (an invariant's forbidden
+    patterns as rules that must never be enabled); ``visible_families`` are the
+    families a property computed in Python reads or is updated from (a monitor);
+    ``progress`` tells the steps that are progress events (livelock's visible
+    steps). See the module docstring for what each adds to a set."""
+
+    def __init__(self, templates: list[Template], observers: tuple = (), visible_families: frozenset = frozenset(),
+                 progress=None):
         self.templates = [t for t in templates if t.forward]
         self.analyzable = True
         self.consumers: dict = {}  # family -> [(template, pattern)] of consuming premises
         self.producers: dict = {}  # family -> [(template, pattern, fresh slots)] of head facts
-        for t in self.templates:
-            fresh = frozenset(a[1] for a in t.head if a[0] == "fresh")
-            for p in t.premises:
-                if p.backward or p.family is None:
-                    self.analyzable = False
-                elif p.mode in (LIN, AFF):
-                    self.consumers.setdefault(p.family, []).append((t, p.pattern))
-            for a in t.head:
-                if a[0] == "rule":
-                    self.analyzable = False
-                elif a[0] == "fact":
-                    self.producers.setdefault(a[2].head, []).append((t, a[2], fresh))
+        self.proved: dict = {}  # template -> families of its premises proved from clauses
+        self.provers_of: dict = {}  # family -> templates with a premise of that family proved from clauses
+        self.pers_heads: dict = {}  # template -> families it adds as persistent facts
+        self.progress = progress
+        self.creator: dict = {}  # template of a rule put in the context -> the top-level rule doing it
+        for top in self.templates:
+            for t in [top, *_nested(top)]:
+                if t is not top:
+                    self.creator[t] = top
+                fresh = frozenset(a[1] for a in t.head if a[0] == "fresh")
+                for p in t.premises:
+                    if p.backward:
+                        if p.family in BUILTINS:
+                            continue  # a function of the bindings alone
+                        pat = p.pattern
+                        if t is not top or type(pat) is not Root or not isinstance(pat.head, Const):
+                            self.analyzable = False
+                            continue
+                        self.proved.setdefault(t, set()).add(pat.head)
+                        self.provers_of.setdefault(pat.head, []).append(t)
+                    elif p.family is None:
+                        self.analyzable = False
+                    elif p.mode in (LIN, AFF):
+                        self.consumers.setdefault(p.family, []).append((t, p.pattern))
+                for a in t.head:
+                    if a[0] == "fact":
+                        self.producers.setdefault(a[2].head, []).append((t, a[2], fresh))
+                        if a[1] == PERS:
+                            self.pers_heads.setdefault(t, set()).add(a[2].head)
+        # abstract steps every set holds: the observers, and every rule touching a visible family
+        self.always: list = [(o, {}) for o in observers]
+        for o in observers:
+            if any(p.backward and p.family not in BUILTINS for p in o.premises):
+                self.analyzable = False
+        if visible_families:
+            for t in self.templates:
+                fams = {p.family for p in t.premises} | {a[2].head for a in t.head if a[0] == "fact"}
+                if fams & visible_families:
+                    self.always.append((t, {}))
+        # a closure that grows past this many abstract steps is abandoned (full expansion, which
+        # is always sound): the analysis must cost less than the states it saves
+        self.max_abstract = 300
+        self.max_seeds = 4
         # statistics
         self.reduced = 0
         self.full = 0
@@ -143,7 +258,13 @@ class Reducer:
         if len(choices) < 2 or not self.analyzable or ctx.rules:
             return None
         best: Optional[list[int]] = None
+        tried = 0
         for seed in range(len(choices)):
+            if tried >= self.max_seeds:
+                break
+            tried += 1
+            if self.progress is not None and self.progress(choices[seed]):
+                continue  # a set with an enabled progress step must be full: no seed
             got = self._closure(ctx, choices, seed, len(choices) if best is None else len(best))
             if got is None:
                 continue
@@ -157,31 +278,53 @@ class Reducer:
 
     def _closure(self, ctx: Context, choices: list, seed: int, limit: int) -> Optional[list[int]]:
         """The closure from one enabled step; None once it reaches ``limit`` enabled steps
-        (no better than full expansion, or than the best set found so far)."""
+        (no better than full expansion, or than the best set found so far), or when it takes
+        in a progress step (visible: the set would have to be full)."""
         in_set: set[int] = set()
         seen_abs: set = set()
         work_steps = [seed]
         work_abs: list = []
         in_set.add(seed)
+        progress = self.progress
 
         def add_abs(tpl: Template, b: dict) -> None:
+            top = self.creator.get(tpl)
+            if top is not None:
+                # a rule to be put in the context: its steps need the step that puts it there
+                # (the reducer runs only on states with no rule in the context)
+                tpl, b = top, {}
             key = (id(tpl), tuple(sorted((k, id(v)) for k, v in b.items())))
             if key not in seen_abs:
                 seen_abs.add(key)
                 work_abs.append((tpl, b))
 
+        for tpl, b in self.always:
+            add_abs(tpl, b)
         while work_steps or work_abs:
-            if len(in_set) >= limit:
-                return None
+            if len(in_set) >= limit or len(seen_abs) > self.max_abstract:
+                return None  # no better than what we have, or too costly to close: expand fully
             if work_steps:
                 c = choices[work_steps.pop()]
+                if progress is not None and progress(c):
+                    return None
+                tpl = c.template
                 for mode, f in c.consumed:  # (A)
                     if mode == PERS:
                         continue
-                    for tpl, pat in self.consumers.get(f.head, ()):
-                        b = _bind(pat, f.args)
+                    for ctpl, pat in self.consumers.get(f.head, ()):
+                        b = _match_binding(ctpl, pat, f)
                         if b is not None:
-                            add_abs(tpl, b)
+                            add_abs(ctpl, b)
+                # (C) proofs: a persistent fact of a family a proof reads may change the proof
+                # this step committed to, and a persistent fact this step adds may change the
+                # proofs of others
+                for fam in self.proved.get(tpl, ()):
+                    for ptpl, _pat, _fresh in self.producers.get(fam, ()):
+                        if fam in self.pers_heads.get(ptpl, ()):
+                            add_abs(ptpl, {})
+                for fam in self.pers_heads.get(tpl, ()):
+                    for qtpl in self.provers_of.get(fam, ()):
+                        add_abs(qtpl, {})
                 continue
             tpl, b = work_abs.pop()
             # enabled instances of the abstract step join the set
@@ -193,18 +336,26 @@ class Reducer:
                     in_set.add(j)
                     work_steps.append(j)
             # (B) enabling sets of its disabled instances
-            facts = [(p.mode, _abstract(p.pattern, b)) for p in tpl.premises]
+            facts = [(p.mode, _abstract(p.pattern, b)) for p in tpl.premises if not p.backward]
             needed = None
             for mode, (fam, args) in facts:
-                if all(a is not _ANY for a in args):
+                if all(a is not _ANY and not a.metas for a in args):
                     g = Root(fam, args)
                     if not _present(ctx, g, mode):
                         needed = [(fam, args)]
                         break
             if needed is None:
                 needed = [fa for _, fa in facts]
+                # a premise proved from clauses and persistent facts of its family may become
+                # provable when such a fact appears
+                for fam in self.proved.get(tpl, ()):
+                    needed.append((fam, None))
             for fam, args in needed:
                 for ptpl, pat, fresh in self.producers.get(fam, ()):
+                    if args is None:
+                        if fam in self.pers_heads.get(ptpl, ()):
+                            add_abs(ptpl, {})
+                        continue
                     pb = _bind(pat, args, fresh)
                     if pb is not None:
                         add_abs(ptpl, pb)

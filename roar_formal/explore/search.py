@@ -85,7 +85,7 @@ class Explorer:
             state = self.states[s]
             depth = g.depth[s] + 1
             if self.reduce:
-                succs, keys = self._expand_reduced(state)
+                succs, keys = self._expand_reduced(state, s)
             else:
                 succs = system.successors(state)
                 keys = [system.key(x.state) for x in succs]
@@ -109,13 +109,13 @@ class Explorer:
         self.elapsed += time.perf_counter() - t0
         return g
 
-    def _expand_reduced(self, state) -> tuple[list, list]:
+    def _expand_reduced(self, state, sid: int) -> tuple[list, list]:
         """A stubborn subset of the successors, or all of them under the cycle proviso: when
         a reduced expansion reaches a state already visited (expanded or in the frontier),
         every step is expanded, so no cycle of the graph is closed by reduced expansions
         alone (each edge of a reduced expansion leads to a state discovered by it)."""
         system = self.system
-        succs, rest = system.reduced_successors(state)
+        succs, rest, rest_groups = system.reduced_successors(state)
         keys = [system.key(x.state) for x in succs]
         if rest is None:
             return succs, keys
@@ -124,6 +124,8 @@ class Explorer:
             more = rest()
             return succs + more, keys + [system.key(x.state) for x in more]
         self.reduced_expansions += 1
+        # the groups the skipped steps belong to are still enabled here (weak fairness)
+        self.graph.add_enabled(sid, rest_groups)
         return succs, keys
 
     def stats(self) -> dict:

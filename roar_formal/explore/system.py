@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from ..clf.context import Context
+from ..clf.forward import inst
 from ..clf.program import Program
 from ..clf.query import show_context
 from ..clf.rules import PERS
@@ -28,7 +29,9 @@ class Options:
     progress_rules: tuple[str, ...] = ()  # rule names (globs) whose steps are progress events
     fairness: str = "first-argument"  # 'first-argument' | 'rule' | 'none'
     canonical: bool = True  # identify states up to renaming of fresh names
-    reduction: bool = False  # partial-order reduction (stubborn sets, see reduction.py); deadlock only
+    reduction: bool = False  # partial-order reduction (stubborn sets, see reduction.py)
+    observers: tuple = ()  # templates a safety property reads: every reduced set keeps them (reduction.py)
+    visible_families: frozenset = frozenset()  # families a property computed in Python reads
 
 
 @dataclass
@@ -63,22 +66,30 @@ class ClfSystem:
         return Successor(choice.rule, self._group(choice), self._progress(choice.rule), nxt, step)
 
     def reduced_successors(self, state: Context):
-        """Successors by a stubborn subset of the enabled steps, and a function giving the
-        others (None when the subset is every enabled step). The explorer applies the
-        cycle proviso; without ``options.reduction`` this is full expansion."""
+        """Successors by a stubborn subset of the enabled steps, a function giving the others
+        (None when the subset is every enabled step), and the fairness groups of the others
+        (weak fairness reads which groups a state enables, expanded or not). The explorer
+        applies the cycle proviso; without ``options.reduction`` this is full expansion."""
         choices = self.program.steps(state)
         pick = None
         if self.options.reduction:
             if self.reducer is None:
                 from .reduction import Reducer
-                self.reducer = Reducer(self.program.templates)
+                self.reducer = Reducer(self.program.templates, self.options.observers,
+                                       self.options.visible_families,
+                                       lambda c: self._progress(c.rule))
             pick = self.reducer.choose(state, choices)
         if pick is None:
-            return [self._successor(state, c) for c in choices], None
+            return [self._successor(state, c) for c in choices], None, ()
         chosen = set(pick)
         rest = [c for i, c in enumerate(choices) if i not in chosen]
         return ([self._successor(state, choices[i]) for i in pick],
-                lambda: [self._successor(state, c) for c in rest])
+                lambda: [self._successor(state, c) for c in rest],
+                [self._group_of(state, c) for c in rest])
+
+    def _group_of(self, state: Context, choice) -> str:
+        """The fairness group of an enabled step, without taking it."""
+        return self._group(choice)
 
     def _progress(self, rule: str) -> bool:
         return is_progress(self.options, rule)
@@ -115,7 +126,19 @@ def step_group(program: Program, options: Options, choice) -> str:
         return "*"
     if mode == "rule":
         return choice.rule
-    # the process is named by the first argument of the first consumed linear fact
+    # the process is named by the first argument of the fact the rule's first consuming premise
+    # (in the order written) matched: the order the matcher found the facts in depends on
+    # the state's index sizes, so it must not decide
+    b = list(choice.bindings)
+    for p in choice.template.premises:
+        if p.backward or p.mode == PERS:
+            continue
+        try:
+            fact = inst(p.pattern, b)
+        except KeyError:
+            continue
+        if fact.args:
+            return program.show(fact.args[0])
     for m, fact in choice.consumed:
         if m != PERS and fact.args:
             return program.show(fact.args[0])

@@ -35,6 +35,11 @@ PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_aga
                   "conflict_failed", "aborted", "aborted_idle")
 FINAL_STATES = ("s_success", "s_failure")
 
+#: what the sequential-achievement monitor is updated from or reads (reduction: visible families)
+MONITOR_FAMILIES = frozenset({"rq", "pending", "return", "callfail", "act", "chk", "mon_in", "mon_cmd", "mon_b"})
+#: what the exclusive-writes invariant reads
+EXCLUSIVE_WRITES_FAMILIES = frozenset({"rq", "hs"})
+
 _REQ_FAMILIES = {"hs", "rs", "rq", "wrq", "tfn", "abortreq", "cres", "ppz", "rdone", "ecf", "cfail", "tfe"}
 _INST_FAMILIES = {"ctl", "rstat", "alive", "ending", "kill", "fin", "act", "chk", "owns"}
 _SITE_RULE = re.compile(r"st(\d+)_([a-z_]+?)(?:_false|_wake)?$")
@@ -102,6 +107,9 @@ class RoarSystem(ClfSystem):
         if self.pairs:
             self._monitor(state, nxt, step)
         return Successor(choice.rule, self.agent_of(choice, state), self._progress(choice.rule), nxt, step)
+
+    def _group_of(self, state: Context, choice) -> str:
+        return self.agent_of(choice, state)
 
     def agent_of(self, choice, state: Context) -> str:
         """The agent that takes a step: the fairness group of weak fairness per agent."""

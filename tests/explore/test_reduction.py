@@ -82,10 +82,19 @@ def test_philosophers_job_verdicts_with_and_without_reduction(tmp_path, variant,
     off = run_job(load_job(_job(tmp_path, model, False)))
     on = run_job(load_job(_job(tmp_path, model, True)))
     assert on.backend == off.backend == "general"
-    assert on.reduction == "off for livelock"  # fairness needs the full graph
+    assert on.reduction == "on"
     for p in ("deadlock", "livelock"):
         assert on.verdicts[p].status == off.verdicts[p].status
-        assert "reduction off for livelock" in on.verdicts[p].message
+        assert "partial-order reduction" in on.verdicts[p].message
+    if off.verdicts["livelock"].status == "holds":
+        # weak fairness: "no fair livelock" on a reduced graph is confirmed without reduction
+        assert "confirmed without reduction" in on.verdicts["livelock"].message
+        assert on.verdicts["livelock"].details["confirmed_states"] == off.graph.n_states
+    else:
+        # a fair cycle of the reduced graph is a fair cycle of the full system: replay it
+        cx = on.verdicts["livelock"].counterexample
+        assert cx.kind == "lasso" and cx.cycle
+        assert on.graph.n_states <= off.graph.n_states
     # deadlock alone: reduction on, same verdict
     sub = tmp_path / "dl_only"
     sub.mkdir()
@@ -250,3 +259,88 @@ def test_reduced_paths_are_runs_of_the_program():
         assert match
         state = ex.states[g.dst[e]]
     assert not p.steps(state)
+
+
+# ------------------------------------------------------------ safety and livelock under reduction
+
+
+def _violating_keys(ex: Explorer, g, never) -> set:
+    return {ex.system.key(ex.states[s]) for s in range(g.n_states) if never(ex.states[s])}
+
+
+@settings(max_examples=30, deadline=None)
+@given(programs(), st.lists(st.tuples(st.sampled_from(["p", "q", "r", "u"]), st.sampled_from(["k0", "k1", "X"])),
+                            min_size=1, max_size=2))
+def test_random_programs_keep_their_invariant_verdicts(src, pattern):
+    """An invariant's forbidden pattern stays in every stubborn set: a state matching it is
+    reachable with reduction exactly when it is without (plain search as the oracle)."""
+    from roar_formal.explore.check import make_never
+
+    text = " * ".join(f"{f} {a}" for f, a in pattern)
+    never = make_never(src, "<random>", [(text, None)])
+    full_ex, full = explore(src, False, Budget(max_states=400, max_seconds=2))
+    p = Program.from_text(src)
+    system = ClfSystem(p, p.start_context(p.sig.directives[-1].start),
+                       Options(reduction=True, observers=never.templates))
+    red_ex = Explorer(system)
+    red = with_big_stack(red_ex.run, Budget(max_states=400, max_seconds=2))
+    if not (full.complete and red.complete):
+        return
+    bad_full, bad_red = _violating_keys(full_ex, full, never), _violating_keys(red_ex, red, never)
+    assert bool(bad_full) == bool(bad_red)
+    assert bad_red <= bad_full and red.n_states <= full.n_states
+
+
+@settings(max_examples=30, deadline=None)
+@given(programs(), st.sampled_from(["r0", "r1", "r2"]))
+def test_random_programs_keep_their_non_progress_cycles(src, progress):
+    """Without fairness a livelock is any cycle without progress; progress steps are visible
+    and the cycle proviso holds, so the verdict is the same with and without reduction."""
+    from roar_formal.explore.properties import check_livelock
+
+    opts = dict(fairness="none", progress_rules=(progress,))
+    _, full = explore(src, False, Budget(max_states=400, max_seconds=2), **opts)
+    _, red = explore(src, True, Budget(max_states=400, max_seconds=2), **opts)
+    if not (full.complete and red.complete):
+        return
+    assert check_livelock(red).status == check_livelock(full).status
+
+
+# A fair livelock that a reduced graph misses: group h can take `t` (never needed) or loop;
+# group g waits. Unreduced, `e` then h's loop forever is fair (g is disabled: no g0, no tok).
+# Reduced, `t` is taken alone first (it is independent of everything), after which g's `u`
+# stays enabled along h's loop, so every cycle left is unfair to g. Hence "holds" under
+# reduction is confirmed on the unreduced graph.
+HIDDEN_FAIR = """
+grp : type. h : grp. g : grp.
+a : grp -> type. tok : grp -> type. g0 : grp -> type. k : grp -> type.
+l0 : grp -> type. l1 : grp -> type. fin : grp -> type.
+t : a h -o {tok g}.
+e : g0 g -o {k h}.
+loop1 : l0 h * k h -o {l1 h * k h}.
+loop2 : l1 h * k h -o {l0 h * k h}.
+u : tok g * k h -o {fin g}.
+#exec * a h * g0 g * l0 h.
+"""
+
+
+def test_weak_fairness_livelock_missed_by_reduction_is_confirmed(tmp_path):
+    from roar_formal.explore.properties import check_livelock
+
+    _, full = explore(HIDDEN_FAIR, False, fairness="first-argument")
+    red_ex, red = explore(HIDDEN_FAIR, True, fairness="first-argument")
+    assert check_livelock(full).violated
+    assert red_ex.reduced_expansions > 0 and red.n_states < full.n_states
+    assert check_livelock(red).status == "holds"  # the reduced graph alone would say so
+    model = tmp_path / "hidden.clf"
+    model.write_text(HIDDEN_FAIR, encoding="utf-8")
+    props = tmp_path / "p.toml"
+    props.write_text('check = ["livelock"]\n[livelock]\nprogress = ["fin*"]\nfairness = "first-argument"\n',
+                     encoding="utf-8")
+    job = tmp_path / "job.toml"
+    job.write_text(f'model = "{model}"\nproperties = "{props}"\nbackend = "general"\nreduction = true\n',
+                   encoding="utf-8")
+    res = run_job(load_job(job))
+    v = res.verdicts["livelock"]
+    assert v.violated and "missed" in v.details["reduction"]
+    assert res.graph.n_states == full.n_states  # the verdict and its lasso come from the full graph

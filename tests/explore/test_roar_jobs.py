@@ -409,12 +409,39 @@ def test_reduction_keeps_the_deadlock_verdicts(tmp_path, spec, expect):
         assert canonical_key(rr.states[-1]) == canonical_key(final)
 
 
-def test_reduction_is_off_when_livelock_is_checked(tmp_path):
+def test_reduction_with_livelock_confirms_holds_without_reduction(tmp_path):
     job = _deadlock_only_job(tmp_path, "mutual_make_fixed", "holds", True)
     job.write_text(job.read_text() + 'livelock = "holds"\n', encoding="utf-8")
     res = run_job(load_job(job))
-    assert res.reduction == "off (deadlock only)" and res.ok
-    assert res.graph.n_states == job_result("mutual_make_fixed.toml").graph.n_states
+    assert res.reduction == "on" and res.ok, res.mismatches
+    full = job_result("mutual_make_fixed.toml")
+    assert "confirmed without reduction" in res.verdicts["livelock"].message
+    assert res.verdicts["livelock"].details["confirmed_states"] == full.graph.n_states
+
+
+@pytest.mark.parametrize("name", ["retry_forever.toml", "retry_bounded.toml", "ordered_pick.toml",
+                                  "ordered_pick_fixed.toml"])
+def test_reduction_keeps_every_verdict_of_the_seeded_faults(tmp_path, name):
+    """The checker jobs again with reduction on: the same verdicts; a violation's path is a
+    path of the full system and still breaks the property there."""
+    full = job_result(name)
+    job = tmp_path / name
+    text = (CHECKER / name).read_text(encoding="utf-8")
+    text = text.replace('"../', f'"{ROOT}/')  # the job's paths, from its new folder
+    job.write_text("reduction = true\n" + text, encoding="utf-8")
+    res = run_job(load_job(job))
+    assert res.reduction == "on" and res.ok, res.mismatches
+    assert res.graph.n_states <= full.graph.n_states
+    for p, v in res.verdicts.items():
+        assert v.status == full.verdicts[p].status, p
+        if v.violated:
+            _model, _start, explorer = res.roar
+            rr = big(replay, save_counterexample(res, p, tmp_path / "traces"))  # on the enumerator
+            assert rr.steps == v.counterexample.length()
+            if v.counterexample.kind == "lasso":
+                assert rr.cycle_closes
+            if p == "sequential-achievement":
+                assert explorer.system.violates_sequence(explorer.states[v.counterexample.final_state])
 
 
 # ------------------------------------------------------------------ 4. saved traces replay
