@@ -286,34 +286,38 @@ _CONST, _SLOT, _PATTERN = 0, 1, 2
 
 
 def _match_plan(tpl: Template) -> tuple:
-    """Per premise: (serve modes, family, ((position, kind, value), ...))."""
-    plan = []
-    for p in tpl.premises:
-        pat = p.pattern
-        args = []
-        for j, a in enumerate(pat.args):
-            if not a.metas:
-                # a ground argument; one with a bound variable cannot be an index key
-                args.append((j, _PATTERN if a.maxb else _CONST, a))
-            elif type(a) is Root and not a.args and type(a.head) is Meta:
-                args.append((j, _SLOT, a.head.index))
-            else:
-                args.append((j, _PATTERN, a))
-        plan.append((_SERVE[p.mode], pat.head, tuple(args), p.pattern))
-    return tuple(plan)
+    """Per premise: (serve modes, family, arity, ((position, kind, value), ...))."""
+    return tuple(_premise_plan(p.mode, p.pattern) for p in tpl.premises)
 
 
-def _first(plan, left, done, b, consumed, trail, index, by_arg, lin, aff, pers, start) -> bool:
-    if not left:
-        return True
-    # the remaining premise with the fewest candidates (the first on ties)
+def _premise_plan(mode: str, pat: Node) -> tuple:
+    """How a premise is looked up and matched: each argument a constant (an index key), a
+    bare slot (an index key once bound) or a pattern for :func:`match`."""
+    args = []
+    for j, a in enumerate(pat.args):
+        if not a.metas:
+            # a ground argument; one with a bound variable cannot be an index key
+            args.append((j, _PATTERN if a.maxb else _CONST, a))
+        elif type(a) is Root and not a.args and type(a.head) is Meta:
+            args.append((j, _SLOT, a.head.index))
+        else:
+            args.append((j, _PATTERN, a))
+    return _SERVE[mode], pat.head, len(pat.args), tuple(args)
+
+
+def _select(plan, done: list, b: list, index: dict, by_arg: dict):
+    """The remaining premise with the fewest candidates (the first on ties) and its
+    candidate bag; None when some premise has none (no match is possible)."""
     best = -1
     best_bag = None
     best_n = 0
-    for i, (_modes, fam, args, _pat) in enumerate(plan):
+    i = -1
+    for _modes, fam, _arity, args in plan:
+        i += 1
         if done[i]:
             continue
         bag = None
+        bag_n = 0
         for j, kind, v in args:
             if kind == _SLOT:
                 v = b[v]
@@ -322,23 +326,34 @@ def _first(plan, left, done, b, consumed, trail, index, by_arg, lin, aff, pers, 
             elif kind == _PATTERN:
                 continue
             per = by_arg.get(fam)
-            if per is None:
-                return False
-            bag2 = per[j].get(v)
+            bag2 = per[j].get(v) if per is not None and j < len(per) else None
             if bag2 is None:
-                return False
-            if bag is None or len(bag2.items) < len(bag.items):
-                bag = bag2
+                return None
+            n2 = len(bag2.items)
+            if not n2:
+                return None
+            if bag is None or n2 < bag_n:
+                bag, bag_n = bag2, n2
         if bag is None:
             bag = index.get(fam)
             if bag is None:
-                return False
-        n = len(bag.items)
-        if not n:
-            return False
-        if best < 0 or n < best_n:
-            best, best_bag, best_n = i, bag, n
-    modes, _fam, args, pat = plan[best]
+                return None
+            bag_n = len(bag.items)
+            if not bag_n:
+                return None
+        if best < 0 or bag_n < best_n:
+            best, best_bag, best_n = i, bag, bag_n
+    return best, best_bag, best_n
+
+
+def _first(plan, left, done, b, consumed, trail, index, by_arg, lin, aff, pers, start) -> bool:
+    if not left:
+        return True
+    sel = _select(plan, done, b, index, by_arg)
+    if sel is None:
+        return False
+    best, best_bag, best_n = sel
+    modes, _fam, _arity, args = plan[best]
     done[best] = True
     items = best_bag.items
     n = best_n
@@ -660,23 +675,8 @@ def all_matches(ctx: Context, tpl: Template, b: list, prover: Optional[Prover] =
 def _all_plan(tpl: Template) -> tuple:
     """(per context premise: (serve modes, family, arity, ((position, kind, value), ...)),
     the proved premises)."""
-    plan = []
-    back = []
-    for p in tpl.premises:
-        if p.backward:
-            back.append(p)
-            continue
-        pat = p.pattern
-        args = []
-        for j, a in enumerate(pat.args):
-            if not a.metas:
-                args.append((j, _PATTERN if a.maxb else _CONST, a))
-            elif type(a) is Root and not a.args and type(a.head) is Meta:
-                args.append((j, _SLOT, a.head.index))
-            else:
-                args.append((j, _PATTERN, a))
-        plan.append((_SERVE[p.mode], pat.head, len(pat.args), tuple(args)))
-    return tuple(plan), tuple(back)
+    plan = tuple(_premise_plan(p.mode, p.pattern) for p in tpl.premises if not p.backward)
+    return plan, tuple(p for p in tpl.premises if p.backward)
 
 
 def _all(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only) -> bool:
@@ -686,44 +686,10 @@ def _all(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, firs
             return _all_back(0, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
         out.append((tuple(b), tuple(consumed)))
         return first_only
-    # the remaining premise with the fewest candidates (the first on ties): _most_selective
-    index = ctx.index
-    by_arg = ctx.by_arg
-    best = -1
-    best_bag = None
-    best_n = 0
-    i = -1
-    for _modes, fam, _arity, args in plan:
-        i += 1
-        if done[i]:
-            continue
-        bag = None
-        bag_n = 0
-        for j, kind, v in args:
-            if kind == _SLOT:
-                v = b[v]
-                if v is None:
-                    continue
-            elif kind == _PATTERN:
-                continue
-            per = by_arg.get(fam)
-            bag2 = per[j].get(v) if per is not None and j < len(per) else None
-            if bag2 is None:
-                return False
-            n2 = len(bag2.items)
-            if not n2:
-                return False
-            if bag is None or n2 < bag_n:
-                bag, bag_n = bag2, n2
-        if bag is None:
-            bag = index.get(fam)
-            if bag is None:
-                return False
-            bag_n = len(bag.items)
-            if not bag_n:
-                return False
-        if best < 0 or bag_n < best_n:
-            best, best_bag, best_n = i, bag, bag_n
+    sel = _select(plan, done, b, ctx.index, ctx.by_arg)
+    if sel is None:
+        return False
+    best, best_bag, _n = sel
     modes, _fam, arity, args = plan[best]
     done[best] = True
     lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
