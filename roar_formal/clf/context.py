@@ -437,11 +437,11 @@ def _build_index(order: list) -> tuple[dict, dict]:
     big: list = []  # bags past Bag.SMALL: they get their position dictionary at the end
     new_bag = _new_bag
     small1 = Bag.SMALL + 1
-    for t in order:
-        fam = t.head
-        b = index.get(fam)
+
+    def put(d: dict, key, t) -> None:
+        b = d.get(key)
         if b is None:
-            b = index[fam] = new_bag(Bag)
+            b = d[key] = new_bag(Bag)
             b.items = [t]
             b.pos = None
         else:
@@ -449,6 +449,10 @@ def _build_index(order: list) -> tuple[dict, dict]:
             items.append(t)
             if len(items) == small1:
                 big.append(b)
+
+    for t in order:
+        fam = t.head
+        put(index, fam, t)
         args = t.args
         if args:
             per = by_arg.get(fam)
@@ -457,16 +461,7 @@ def _build_index(order: list) -> tuple[dict, dict]:
             elif len(per) < len(args):
                 per.extend({} for _ in range(len(args) - len(per)))
             for d, a in zip(per, args):
-                b = d.get(a)
-                if b is None:
-                    b = d[a] = new_bag(Bag)
-                    b.items = [t]
-                    b.pos = None
-                else:
-                    items = b.items
-                    items.append(t)
-                    if len(items) == small1:
-                        big.append(b)
+                put(d, a, t)
     for b in big:
         b.pos = {y: i for i, y in enumerate(b.items)}
     return index, by_arg

@@ -144,14 +144,12 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
     """Yield the consumption list ``[(mode, fact), ...]`` of each match; ``b`` holds
     the bindings while the generator is suspended. ``start`` >= 0 rotates candidate
     lists (random or fair choice of instances)."""
-    prems = tpl.premises
-    n = len(prems)
-    done = [False] * n
+    plan, ctx_list, back = _plans(tpl)
+    done = [False] * len(plan)
     used: dict = {}
     consumed: list = []
     trail: list = []
-    back = [i for i, p in enumerate(prems) if p.backward]
-    ctx_prems = n - len(back)
+    ctx_prems = len(plan)
     index = ctx.index
     by_arg = ctx.by_arg
     lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
@@ -165,11 +163,11 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
                 return
             yield from _backward(0)
             return
-        sel = _most_selective(prems, done, b, index, by_arg)
+        sel = _select(plan, done, b, index, by_arg)
         if sel is None:
             return
-        best, best_bag = sel
-        p = prems[best]
+        best, best_bag, _n = sel
+        p = ctx_list[best]
         done[best] = True
         pat = p.pattern
         it = best_bag.rotated(start) if start >= 0 else list(best_bag.items)
@@ -197,7 +195,7 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
         if j == len(back):
             yield consumed
             return
-        p = prems[back[j]]
+        p = back[j]
         mark = len(trail)
         for _ in prover(ctx, tpl, p, b, trail):
             yield from _backward(j + 1)
@@ -217,54 +215,6 @@ def _available(key: tuple, lin: dict, aff: dict, pers: dict, used: dict) -> bool
     return have > used.get(key, 0)
 
 
-def _most_selective(prems, done: list, b: list, index: dict, by_arg: dict):
-    """The remaining context premise with the fewest candidates, and its candidate bag;
-    None when some premise has no candidate at all (no match is possible)."""
-    best = None
-    best_bag = None
-    best_n = -1
-    for i, p in enumerate(prems):
-        if done[i] or p.backward:
-            continue
-        pat = p.pattern
-        fam = pat.head
-        bag = None
-        bag_n = 0
-        j = -1
-        for a in pat.args:
-            j += 1
-            # ground_value(a, b), inlined
-            if not a.metas:
-                if a.maxb:
-                    continue
-                v = a
-            elif type(a) is Root and not a.args and type(a.head) is Meta:
-                v = b[a.head.index]
-                if v is None:
-                    continue
-            else:
-                continue
-            per = by_arg.get(fam)
-            bag2 = per[j].get(v) if per is not None and j < len(per) else None
-            if bag2 is None:
-                return None
-            n2 = len(bag2.items)
-            if not n2:
-                return None
-            if bag is None or n2 < bag_n:
-                bag, bag_n = bag2, n2
-        if bag is None:
-            bag = index.get(fam)
-            if bag is None:
-                return None
-            bag_n = len(bag.items)
-            if not bag_n:
-                return None
-        if best is None or bag_n < best_n:
-            best, best_bag, best_n = i, bag, bag_n
-    return best, best_bag
-
-
 def first_match(ctx: Context, tpl: Template, b: list, start: int) -> Optional[list]:
     """The first match of a template without proved premises: the committed-choice
     hot path. Same search order as :func:`find_matches` (most selective premise
@@ -272,9 +222,7 @@ def first_match(ctx: Context, tpl: Template, b: list, start: int) -> Optional[li
     but over a per-template plan of each premise's arguments (a constant, a bare
     slot, or a pattern for :func:`match`) and with plain recursion, so a step in a
     large context costs a few dictionary lookups (benchmark B2)."""
-    plan = tpl.match_plan
-    if plan is None:
-        plan = tpl.match_plan = _match_plan(tpl)
+    plan = _plans(tpl)[0]
     consumed: list = []
     if _first(plan, len(plan), [False] * len(plan), b, consumed, [], ctx.index, ctx.by_arg,
               ctx.lin, ctx.aff, ctx.pers, start):
@@ -285,9 +233,15 @@ def first_match(ctx: Context, tpl: Template, b: list, start: int) -> Optional[li
 _CONST, _SLOT, _PATTERN = 0, 1, 2
 
 
-def _match_plan(tpl: Template) -> tuple:
-    """Per premise: (serve modes, family, arity, ((position, kind, value), ...))."""
-    return tuple(_premise_plan(p.mode, p.pattern) for p in tpl.premises)
+def _plans(tpl: Template) -> tuple:
+    """(per context premise: (serve modes, family, arity, ((position, kind, value), ...)),
+    the context premises, the proved premises), made once per template."""
+    got = tpl.match_plan
+    if got is None:
+        ctx_list = tuple(p for p in tpl.premises if not p.backward)
+        got = tpl.match_plan = (tuple(_premise_plan(p.mode, p.pattern) for p in ctx_list), ctx_list,
+                                tuple(p for p in tpl.premises if p.backward))
+    return got
 
 
 def _premise_plan(mode: str, pat: Node) -> tuple:
@@ -661,22 +615,12 @@ def all_matches(ctx: Context, tpl: Template, b: list, prover: Optional[Prover] =
     in order), over a per-template plan of each premise's arguments as in
     :func:`first_match` and collecting the matches instead of suspending a generator
     per premise: the explorer enumerates every match of every state."""
-    plan = tpl.__dict__.get("_all_plan")
-    if plan is None:
-        plan = tpl._all_plan = _all_plan(tpl)
-    ctx_plan, back = plan
+    ctx_plan, _ctx_list, back = _plans(tpl)
     if back and prover is None:
         return []
     out: list = []
     _all(ctx_plan, len(ctx_plan), [False] * len(ctx_plan), b, [], [], ctx, tpl, back, prover, out, first_only)
     return out
-
-
-def _all_plan(tpl: Template) -> tuple:
-    """(per context premise: (serve modes, family, arity, ((position, kind, value), ...)),
-    the proved premises)."""
-    plan = tuple(_premise_plan(p.mode, p.pattern) for p in tpl.premises if not p.backward)
-    return plan, tuple(p for p in tpl.premises if p.backward)
 
 
 def _all(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only) -> bool:

@@ -72,7 +72,7 @@ class Template:
     forward: bool = True
     slot_names: list[str] = field(default_factory=list)
     source: Optional[Node] = None  # the type it was compiled from (slots as Metas)
-    match_plan: Optional[tuple] = field(default=None, repr=False)  # forward.first_match's, made on first use
+    match_plan: Optional[tuple] = field(default=None, repr=False)  # forward._plans, made on first use
 
     @cached_property
     def backward_premises(self) -> bool:
