@@ -1,11 +1,36 @@
-"""Functional layer of spa_loop.roar: a simulated lidar, planner and base.
+"""Functional layer of spa_loop.roar: a lidar, planner and base.
 
-``registry()`` builds a fresh simulation for each run. Each primitive also
-declares its abstract outcomes, which the explorer branches on instead of
-calling it.
+``registry()`` is the abstract binding (a small dictionary simulation for
+``roar-verify run``; the explorer branches on the declared outcomes).
+``robot_registry()`` binds the primitives to the pymunk reference robot
+(``roar-verify simulate``; scenarios ``slip`` and ``clear``). The goal is an
+integer: the robot drives along the line y = its start's y to x = goal
+metres. ``scan_stamp`` counts the lidar's scans; ``compute_plan`` plans with
+A*; ``track`` starts the pure-pursuit controller on the plan (planning one
+itself if there is none yet); ``odometry`` reads x to the nearest metre.
+
+The outcomes with fixed values are written for the request
+``exec::arrived == true where exec::goal == 7``. A stamp is classified
+relative to the stamp read before it: ``new_scan`` when it moved on,
+``no_scan`` when it did not; with the representative values 1 and 0 every
+comparison the spec makes (``>``, ``!=`` against the last stamp it kept)
+comes out the same as on the robot.
 """
 
+from roar_formal.robot.activity import Read, Sleep, ok
+from roar_formal.robot.robot import Plan
 from roar_formal.roar.functional import Outcome, Registry
+
+GOAL = 7
+
+OUTCOMES = {
+    "scan_stamp": [Outcome("new_scan", True, result=1, covers=lambda r: r.ok and r.value > r.detail["previous"]),
+                   Outcome("no_scan", True, result=0, covers=lambda r: r.ok and r.value <= r.detail["previous"])],
+    "compute_plan": [Outcome("planned", True), Outcome("no_path", False)],
+    "track": [Outcome("tracking", True), Outcome("lost", False)],
+    "odometry": [Outcome("at_goal", True, result=GOAL, covers=lambda r: r.ok and r.value == GOAL),
+                 Outcome("moving", True, result=3, covers=lambda r: r.ok and r.value != GOAL)],
+}
 
 
 def registry() -> Registry:
@@ -31,10 +56,50 @@ def registry() -> Registry:
             state["pos"] += 1 if t > state["pos"] else -1
         return state["pos"]
 
-    reg.register("scan_stamp", scan_stamp, outcomes=[Outcome("new_scan", True, result=1),
-                                                     Outcome("no_scan", True, result=0)])
-    reg.register("compute_plan", compute_plan, outcomes=[Outcome("planned", True), Outcome("no_path", False)])
-    reg.register("track", track, outcomes=[Outcome("tracking", True), Outcome("lost", False)])
-    reg.register("odometry", odometry, outcomes=[Outcome("at_goal", True, result=7),
-                                                 Outcome("moving", True, result=3)])
+    reg.register("scan_stamp", scan_stamp, outcomes=OUTCOMES["scan_stamp"])
+    reg.register("compute_plan", compute_plan, outcomes=OUTCOMES["compute_plan"])
+    reg.register("track", track, outcomes=OUTCOMES["track"])
+    reg.register("odometry", odometry, outcomes=OUTCOMES["odometry"])
     return reg
+
+
+def _target(robot, goal):
+    return (float(goal), robot.scenario.robot.start[1])
+
+
+def robot_registry() -> Registry:
+    reg = Registry()
+
+    def scan_stamp():
+        def read(robot):
+            prev = robot.memo.get("stamp", 0)
+            robot.memo["stamp"] = robot.scans
+            return ok(robot.scans, "stamp", previous=prev)
+        return Read(read, "scan_stamp")
+
+    def compute_plan(goal):
+        return _PlanTo(goal)
+
+    def track(goal):
+        def read(robot):
+            path = robot.path or robot.plan_to(_target(robot, goal), "track")
+            return robot.follow(path or [])
+        return Read(read, "track")
+
+    reg.register("scan_stamp", scan_stamp, outcomes=OUTCOMES["scan_stamp"])
+    reg.register("compute_plan", compute_plan, outcomes=OUTCOMES["compute_plan"])
+    reg.register("track", track, outcomes=OUTCOMES["track"])
+    reg.register("odometry", lambda: Sleep(0.05, "odometry_metres", name="odometry"), outcomes=OUTCOMES["odometry"])
+    return reg
+
+
+class _PlanTo(Plan):
+    """Plan to x = goal on the start's line (the goal is known only once the robot is there)."""
+
+    def __init__(self, goal):
+        super().__init__((float(goal), 0.0), seconds=0.3, label="compute_plan")
+        self.x = float(goal)
+
+    def start(self, robot):
+        self.goal = _target(robot, self.x)
+        return super().start(robot)

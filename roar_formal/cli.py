@@ -8,12 +8,13 @@ wires them together and turns user errors into located messages (no traceback).
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 
+from .console import make_console
 from .errors import RoarError
 
 app = typer.Typer(
@@ -24,7 +25,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-err_console = Console(stderr=True, highlight=False)
+err_console = make_console(stderr=True)
 
 
 @app.callback()
@@ -36,9 +37,10 @@ def _register_all() -> None:
     from .clf import commands as clf_commands
     from .explore import commands as explore_commands
     from .roar import commands as roar_commands
+    from .robot import commands as robot_commands
     from .tca import commands as tca_commands
 
-    for module in (clf_commands, roar_commands, explore_commands, tca_commands):
+    for module in (clf_commands, roar_commands, robot_commands, explore_commands, tca_commands):
         module.register(app)
 
 
@@ -47,6 +49,7 @@ _register_all()
 
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; user errors print ``file:line:col: message`` and exit 2."""
+    _exit_cleanly_on_sigterm()
     try:
         app(args=argv, standalone_mode=True)
     except RoarError as exc:
@@ -59,6 +62,19 @@ def main(argv: list[str] | None = None) -> None:
                           "This is a bug in roar-formal; rerun with ROAR_DEBUG=1 to see the traceback.",
                           markup=True, soft_wrap=True)
         sys.exit(3)
+
+
+def _exit_cleanly_on_sigterm() -> None:
+    """SIGTERM (a CI timeout, ``kill``) unwinds like Ctrl-C: files being written are removed
+    (``trace.format.write_atomic``) instead of being left behind half-done."""
+    def stop(signum, frame):  # pragma: no cover - exercised through a subprocess
+        raise SystemExit(128 + signum)
+
+    try:
+        if signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
+            signal.signal(signal.SIGTERM, stop)
+    except (ValueError, OSError, AttributeError):  # not the main thread, or no SIGTERM here
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

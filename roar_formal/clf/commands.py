@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
+from ..console import make_console
 from ..errors import QueryError, RoarError
 
 
@@ -23,7 +23,7 @@ def register(app: typer.Typer) -> None:
         from .program import Program
         from .query import run_directives, with_big_stack
 
-        console = Console(highlight=False)
+        console = make_console()
 
         def emit(line: str) -> None:
             style = None

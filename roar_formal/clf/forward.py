@@ -403,6 +403,59 @@ def fire(ctx: Context, tpl: Template, b: list, consumed: list, crule: Optional[C
 # ------------------------------------------------------------------ drivers
 
 
+def _const_leaves(pat: Node, depth: int = 2, path: tuple = ()):
+    """(path, constant) for each argument of ``pat`` (and their arguments, to ``depth``) that is a constant-headed term."""
+    if type(pat) is not Root or depth == 0:
+        return
+    for k, a in enumerate(pat.args):
+        if type(a) is Root and type(a.head) is Const:
+            yield path + (k,), a.head
+            yield from _const_leaves(a, depth - 1, path + (k,))
+
+
+def _discriminators(by_family: dict) -> dict:
+    """Per family, argument paths at which the premises of its templates name constants, with the
+    templates by (path, constant): a new fact wakes only those whose premise can match it.
+
+    Each premise is keyed by one of its constant leaves, at the path that splits the family's
+    premises into the most groups. Sound because the premise has that constant there, so a
+    fact with another one (or none) cannot match it; a premise with no constant leaf is woken
+    by every fact of the family. Returns family -> (paths, {(path, constant): templates},
+    always-woken templates, all templates)."""
+    out = {}
+    for fam, tpls in by_family.items():
+        if len(tpls) < 4:
+            continue
+        prems = []          # (template, leaves of one premise on fam)
+        diversity: dict = {}
+        for t in tpls:
+            for p in t.premises:
+                if p.backward or p.family is not fam:
+                    continue
+                leaves = dict(_const_leaves(p.pattern))
+                prems.append((t, leaves))
+                for path, c in leaves.items():
+                    diversity.setdefault(path, set()).add(c)
+        rank = sorted(diversity, key=lambda q: (-len(diversity[q]), len(q), q))
+        table: dict = {}
+        rest: dict = {}
+        used: list = []
+        for t, leaves in prems:
+            path = next((q for q in rank if q in leaves), None)
+            if path is None:
+                rest[id(t)] = t
+                continue
+            if path not in used:
+                used.append(path)
+            table.setdefault((path, leaves[path]), {})[id(t)] = t
+        if len(rest) == len({id(t) for t in tpls}):
+            continue
+        order = {id(t): i for i, t in enumerate(tpls)}
+        full = {k: tuple(sorted(v.values(), key=lambda t: order[id(t)])) for k, v in table.items()}
+        out[fam] = (tuple(used), full, tuple(rest.values()), tuple(tpls))
+    return out
+
+
 class Run:
     """Committed-choice forward chaining over a context, to quiescence or a step bound."""
 
@@ -435,12 +488,32 @@ class Run:
                 self.always.append(t)
             for f in fams:
                 self.by_family.setdefault(f, []).append(t)
+        self.disc = _discriminators(self.by_family)
         from .context import Bag
         self.agenda = Bag()
         for t in self.templates:
             self.agenda.add(t)
         for r in ctx.rules.values():
             self.agenda.add(r)
+
+    def _woken(self, x):
+        """The templates a new fact ``x`` may enable: those with a premise of its family, less
+        those whose premise needs another constant where ``x`` has one (see _discriminators)."""
+        d = self.disc.get(x.head)
+        if d is None:
+            return self.by_family.get(x.head, ())
+        paths, table, rest, every = d
+        out = list(rest)
+        for path in paths:
+            sub = x
+            for k in path:
+                if type(sub) is not Root or len(sub.args) <= k:
+                    return every
+                sub = sub.args[k]
+            if type(sub) is not Root or type(sub.head) is not Const:
+                return every
+            out.extend(table.get((path, sub.head), ()))
+        return out
 
     def _pick(self):
         items = self.agenda.items
@@ -492,7 +565,7 @@ class Run:
         for t in produced:
             ctx.add_fact(t, LIN)
             step.produced.append((LIN, t))
-            for tpl in self.by_family.get(t.head, ()):
+            for tpl in self._woken(t):
                 self.agenda.add(tpl)
             if ctx.rules:
                 for uid in ctx.rules_woken_by(t):
@@ -532,11 +605,21 @@ class Run:
             self.steps += 1
             if type(item) is CtxRule and item.mode != PERS:
                 agenda.discard(item)
+            # a fact the step consumed and put back unchanged enables nothing new: every rule
+            # that could use it was either still on the agenda or failed with it present
+            back = None
+            if step.consumed:
+                back = {}
+                for m, c in step.consumed:
+                    back[m, c] = back.get((m, c), 0) + 1
             for mode, x in step.produced:
                 if type(x) is CtxRule:
                     agenda.add(x)
                     continue
-                for t in self.by_family.get(x.head, ()):
+                if back and back.get((mode, x)):
+                    back[mode, x] -= 1
+                    continue
+                for t in self._woken(x):
                     agenda.add(t)
                 if ctx.rules:  # no live rule: nothing to wake
                     for uid in ctx.rules_woken_by(x):

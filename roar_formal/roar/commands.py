@@ -9,9 +9,9 @@ from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 
+from ..console import make_console
 from ..errors import RoarError
 
 _KIND_STYLE = {
@@ -98,10 +98,10 @@ def register(app: typer.Typer) -> None:
         spec_ast = load_spec(spec)
         reg = load_registry(functional_module(spec, functional))
         model = compile_spec(spec_ast, request, registry=reg, functional="python")
-        console = Console(highlight=False)
+        console = make_console()
         if not as_json:
             console.print(f"[bold]{escape(str(spec))}[/]: request [cyan]{escape(request)}[/]"
-                          + (f", faults {escape(', '.join(fault))}" if fault else "") + f", seed {seed}")
+                          + (f", faults {escape(', '.join(fault))}" if fault else "") + f", seed {seed}", markup=True)
 
         res = run_model(model, seed=seed, max_steps=max_steps, registry=reg, faults=faults, fair=fair)
         rules = [s[0] for s in res.steps]
@@ -110,7 +110,7 @@ def register(app: typer.Typer) -> None:
                 style = _KIND_STYLE.get(ev.kind, "default")
                 rule = f"  [dim]({escape(rules[ev.step - 1])})[/]" if verbose else ""
                 console.print(f"[dim]{ev.step:>5}[/] {escape(ev.agent):<12} [{style}]{escape(ev.text)}[/]{rule}",
-                              soft_wrap=True)
+                              soft_wrap=True, markup=True)
         if trace is not None:
             _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault))
         if as_json:
@@ -121,11 +121,12 @@ def register(app: typer.Typer) -> None:
         else:
             style = "green" if res.ok else "red"
             end = "quiescent" if res.quiescent else f"stopped after {max_steps} steps"
-            console.print(f"[{style}]request {res.outcome}[/] after {len(res.steps)} CLF steps ({end})")
+            console.print(f"[{style}]request {escape(res.outcome)}[/] after {len(res.steps)} CLF steps ({end})",
+                          markup=True)
             for line in res.error_context:
-                console.print(f"  error context: {escape(line)}")
+                console.print(f"  error context: {line}")
             if trace is not None:
-                console.print(f"trace written to {escape(str(trace))}")
+                console.print(f"trace written to {trace}")
         if not res.ok:
             raise typer.Exit(1)
 

@@ -83,6 +83,7 @@ class Site:
     var: Optional[str] = None       # set: the variable written
     function: Optional[str] = None  # call: the function
     cst: Optional[str] = None       # make/ensure: the constraint constant
+    period_ms: Optional[float] = None  # wait/assert: the period written (ms), for runs in simulated time
 
 
 @dataclass
@@ -440,6 +441,8 @@ class _Compiler:
         site_kw = {}
         if isinstance(st, a.Set):
             site_kw["var"] = st.target.name
+        if isinstance(st, (a.Wait, a.Assert)) and isinstance(st.period, (a.IntLit, a.DoubleLit)):
+            site_kw["period_ms"] = float(st.period.value)
         if isinstance(st, (a.Make, a.Ensure)):
             c = st.constraint
             site_kw["cst"] = self.cst_for(ag, c.expr, c.target(ag.name))

@@ -273,8 +273,8 @@ def _remove(ctx: Context, fam: str, pred) -> None:
 
 def path_events(model: CompiledModel, start: Context, steps: list) -> list:
     """The ROAR-level events of a path of engine steps from ``start`` (counterexamples)."""
-    from .run import _Narrator
-    nar = _Narrator(model)
+    from .run import Narrator
+    nar = Narrator(model)
     for _m, f, _n in start.facts():
         if _h(f) == "rq":
             nar.label(f.args[0])

@@ -51,6 +51,10 @@ class Outcome:
     #: the value the call returns in this outcome (None: true/false by ``success`` for a
     #: bool function, the type's default value otherwise)
     result: object = field(default=None, hash=False)
+    #: which concrete results of the robot this outcome stands for: a predicate over a
+    #: :class:`roar_formal.robot.activity.CallResult` (None: the results whose success
+    #: is ``success`` and, when ``result`` is given, whose value equals it)
+    covers: Optional[Callable[[object], bool]] = field(default=None, compare=False, hash=False, repr=False)
 
 
 SUCCESS = Outcome("success", True)

@@ -28,7 +28,8 @@ from ..errors import RoarError
 from .compile import CompiledModel, num_lit
 from .functional import Outcome, Registry
 
-__all__ = ["Fault", "RoarEvent", "RunResult", "run_model", "parse_fault", "value_of"]
+__all__ = ["Fault", "RoarEvent", "RunResult", "run_model", "parse_fault", "value_of", "Values", "Narrator",
+           "Resolver", "collect_result", "list_items", "format_value", "describe_ec"]
 
 FINAL = {"s_success": "success", "s_failure": "failure", "s_aborted": "aborted"}
 STATE_NAMES = {"s_sent": "sent", "s_pending": "pending", "s_running": "running", "s_tempfail": "temporary failure",
@@ -105,15 +106,15 @@ def value_of(t) -> object:
     if h == "vstr":
         return string_value(t.args[0])
     if h == "vrec":
-        return tuple(value_of(x) for x in _items(t.args[0]))
+        return tuple(value_of(x) for x in list_items(t.args[0]))
     if h == "vopq":
         return ("opaque", int(num_value(t.args[0])))
     if h in ("vnil", "vcons"):
-        return [value_of(x) for x in _items(t)]
+        return [value_of(x) for x in list_items(t)]
     return show(t)
 
 
-def _items(t):
+def list_items(t):
     out = []
     while isinstance(t.head, Const) and t.head.name == "vcons":
         out.append(t.args[0])
@@ -121,7 +122,7 @@ def _items(t):
     return out
 
 
-class _Values:
+class Values:
     """Python values to CLF terms (opaque values kept in a table, named by a number)."""
 
     def __init__(self, model: CompiledModel):
@@ -155,7 +156,7 @@ class _Values:
         """The Python value of a term; a struct of a known type is a dict by field name."""
         if ty in self.model.structs and isinstance(t.head, Const) and t.head.name == "vrec":
             return {n: self.python(x, self.model.field_types.get(ty, {}).get(n))
-                    for n, x in zip(self.model.structs[ty], _items(t.args[0]))}
+                    for n, x in zip(self.model.structs[ty], list_items(t.args[0]))}
         v = value_of(t)
         if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque" and 1 <= v[1] <= len(self.opaque):
             return self.opaque[v[1] - 1]
@@ -172,10 +173,10 @@ class _Values:
 # ------------------------------------------------------------------ the functional layer
 
 
-class _Resolver:
+class Resolver:
     """Answers pending calls: faults first, then the registry's callable, then the declared outcomes."""
 
-    def __init__(self, model: CompiledModel, registry: Optional[Registry], faults: list[Fault], values: _Values):
+    def __init__(self, model: CompiledModel, registry: Optional[Registry], faults: list[Fault], values: Values):
         self.model = model
         self.registry = registry
         self.faults = faults
@@ -186,8 +187,9 @@ class _Resolver:
     def _matches(self, f: Fault, owner: Optional[str], name: str) -> bool:
         return f.name in (name, f"{owner}::{name}")
 
-    def answer(self, fc: str, args: list):
-        """(result term or None for a failure, outcome description)."""
+    def forced(self, fc: str):
+        """Count this call of ``fc``; when a ``--fault`` names it, its forced answer
+        (result term or None, description, writes), else None."""
         owner, name = self.model.functions[fc]
         rty = self.model.fn_types.get(fc)
         qual = f"{owner}::{name}" if owner else name
@@ -204,7 +206,18 @@ class _Resolver:
                                         f"(its outcomes: {', '.join(o.name for o in outcomes) or 'none declared'})")
                 else:
                     o = next((o for o in outcomes if not o.success), Outcome("failure", False))
-                return self._outcome(o, rty), f"fault: {o.name}", o.writes
+                return self.outcome_term(o, rty), f"fault: {o.name}", o.writes
+        return None
+
+    def answer(self, fc: str, args: list):
+        """(result term or None for a failure, outcome description, writes)."""
+        forced = self.forced(fc)
+        if forced is not None:
+            return forced
+        owner, name = self.model.functions[fc]
+        rty = self.model.fn_types.get(fc)
+        prim = self.registry.lookup(name, owner) if self.registry is not None else None
+        outcomes = prim.outcomes if prim is not None else ()
         if prim is not None and prim.fn is not None:
             tys = self.model.fn_params.get(fc, [])
             py = [self.values.python(x, tys[i] if i < len(tys) else None) for i, x in enumerate(args)]
@@ -218,9 +231,9 @@ class _Resolver:
                 return const("vunit"), "done", {}
             return self.values.term(v, rty), "returned", {}
         o = next((o for o in outcomes if o.success), outcomes[0] if outcomes else Outcome("success", True))
-        return self._outcome(o, rty), o.name, o.writes
+        return self.outcome_term(o, rty), o.name, o.writes
 
-    def _outcome(self, o: Outcome, rty: Optional[str]):
+    def outcome_term(self, o: Outcome, rty: Optional[str]):
         if o.result is not None:
             return self.values.term(o.result, rty)
         if rty == "bool":
@@ -245,7 +258,7 @@ def _default(rty, model):
 # ------------------------------------------------------------------ events
 
 
-class _Narrator:
+class Narrator:
     """Reads ROAR-level events from CLF steps."""
 
     def __init__(self, model: CompiledModel):
@@ -268,13 +281,12 @@ class _Narrator:
     def events(self, i: int, step) -> list[RoarEvent]:
         m = self.m
         out: list[RoarEvent] = []
-        cons = {}
-        for _mode, f in step.consumed:
-            if type(f) is Root:
-                cons.setdefault(self._name(f) if False else f.head, []).append(f)
         prod = [f for _mode, f in step.produced if type(f) is Root]
-        by = lambda fam, facts: [f for f in facts if isinstance(f.head, Const) and f.head.name == fam]
         consumed = [f for _m, f in step.consumed if type(f) is Root]
+        groups = {id(prod): _by_family(prod), id(consumed): _by_family(consumed)}
+
+        def by(fam, facts):
+            return groups[id(facts)].get(fam, ())
         rule = step.rule
         # requests created
         for f in by("rq", prod):
@@ -286,7 +298,7 @@ class _Narrator:
                 self.req_info[lab] = (agent, text)
                 kind = self._name(f.args[4]) if isinstance(f.args[4].head, Const) else "?"
                 if kind in ("k_make", "k_ensure"):
-                    site = m.sites.get(_site_of(rule))
+                    site = m.sites.get(site_of(rule))
                     sender = site.agent if site else "outside"
                     out.append(RoarEvent(i, "sent", sender,
                                          f"{kind[2:]} {lab} to {agent}: {text}", {"request": lab}))
@@ -314,7 +326,7 @@ class _Narrator:
         for f in by("abortreq", prod):
             lab = self.label(f.args[0])
             agent, text = self.req_info.get(lab, ("?", "?"))
-            site = m.sites.get(_site_of(rule))
+            site = m.sites.get(site_of(rule))
             who = site.agent if site else (self.acts.get(_first_arg(consumed, "act"), ("?",))[0])
             out.append(RoarEvent(i, "abort", who, f"abort {lab} ({agent}: {text})", {"request": lab}))
         if rule == "concurrency_issue":
@@ -337,7 +349,7 @@ class _Narrator:
         if rule == "tasks_chosen":
             for f in by("hs", prod):
                 ph = f.args[1]   # h_write (vsome Tasks)
-                ts = [m.tasks[self._name(x.args[0])][1] for x in _items(ph.args[0].args[0])]
+                ts = [m.tasks[self._name(x.args[0])][1] for x in list_items(ph.args[0].args[0])]
                 lab = self.label(f.args[0])
                 agent = self.req_info.get(lab, ("?",))[0]
                 out.append(RoarEvent(i, "tasks", agent, f"{lab}: tasks {' then '.join(ts)}",
@@ -362,8 +374,8 @@ class _Narrator:
         for f in by("pending", prod):
             fc = self._name(f.args[0])
             owner, name = m.functions[fc]
-            args = ", ".join(_show_value(x) for x in _items(f.args[1]))
-            site = m.sites.get(_site_of(rule))
+            args = ", ".join(_show_value(x) for x in list_items(f.args[1]))
+            site = m.sites.get(site_of(rule))
             agent = site.agent if site else (owner or "?")
             self.calls[f.args[2]] = (agent, f"{name}({args})")
             out.append(RoarEvent(i, "primitive-start", agent, f"{name}({args})", {"function": name}))
@@ -379,7 +391,7 @@ class _Narrator:
                 out.append(RoarEvent(i, "primitive-end", agent, f"{call} failed", {"failed": True}))
         # variable writes
         before = {f.args[0]: f.args[1] for f in by("contains", consumed)}
-        site = m.sites.get(_site_of(rule))
+        site = m.sites.get(site_of(rule))
         written = f"v_{site.agent}_{site.var}" if site is not None and site.kind == "set" else None
         for f in by("contains", prod):
             c = f.args[0]
@@ -403,6 +415,15 @@ class _Narrator:
         return out
 
 
+def _by_family(facts) -> dict:
+    """Facts grouped by the name of their family (what each kind of event reads)."""
+    out: dict = {}
+    for f in facts:
+        if isinstance(f.head, Const):
+            out.setdefault(f.head.name, []).append(f)
+    return out
+
+
 def _first_arg(facts, fam):
     for f in facts:
         if isinstance(f.head, Const) and f.head.name == fam:
@@ -410,7 +431,7 @@ def _first_arg(facts, fam):
     return None
 
 
-def _site_of(rule: str) -> str:
+def site_of(rule: str) -> str:
     m = re.match(r"st(\d+)_([a-z_]+?)(?:_false|_wake)?$", rule)
     return f"pp{m.group(1)}_{m.group(2)}" if m else ""
 
@@ -455,7 +476,7 @@ def format_value(v) -> str:
 
 def describe_ec(t, m: CompiledModel) -> list[str]:
     out = []
-    for x in _items(t):
+    for x in list_items(t):
         h = x.head.name
         if h == "vcst":
             out.append(f"constraint failed: {m.csts.get(x.args[0].head.name, ('?', '?'))[1]}")
@@ -487,9 +508,9 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     prog = model.program()
     start = next(d for d in prog.sig.directives if hasattr(d, "start"))
     ctx = prog.start_context(start.start)
-    values = _Values(model)
-    resolver = _Resolver(model, registry, list(faults or ()), values)
-    narrator = _Narrator(model)
+    values = Values(model)
+    resolver = Resolver(model, registry, list(faults or ()), values)
+    narrator = Narrator(model)
     steps: list = []
     events: list[RoarEvent] = []
     external: dict = {}   # step number -> (pending fact, answer fact): the functional layer's steps
@@ -520,7 +541,7 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             break
         # answer the oldest call first (all pending calls were made while the rest waited)
         for f in calls:
-            fc, args, d = f.args[0].head.name, _items(f.args[1]), f.args[2]
+            fc, args, d = f.args[0].head.name, list_items(f.args[1]), f.args[2]
             result, how, writes = resolver.answer(fc, args)
             ans = const("return", result, d) if result is not None else const("callfail", d)
             eaten, made = [f], [ans]
@@ -528,7 +549,7 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             for var, value in writes.items():   # an outcome's writes (declared, or forced by a fault)
                 agent, _, name = var.rpartition("::")
                 cell = f"v_{agent or owner}_{name}"
-                old = next((g for g in _cells(ctx, cell)), None)
+                old = next((g for g in cells_of(ctx, cell)), None)
                 if old is not None:
                     eaten.append(old)
                     made.append(const("contains", old.args[0], values.term(value, model.cell_types.get(cell))))
@@ -542,19 +563,19 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     if unused:
         names = ", ".join(str(f) for f in unused)
         raise RoarError(f"--fault {names}: no such call happened in this run (check the name and the call number)")
-    res = _result(model, ctx, steps, events, quiescent, narrator)
+    res = collect_result(model, ctx, steps, events, quiescent, narrator)
     res.external = external
     return res
 
 
-def _cells(ctx, cell: str):
+def cells_of(ctx, cell: str):
     bag = ctx.index.get(Const("contains"))
     for f in (bag.items if bag else ()):
         if f.args[0].head.name == cell:
             yield f
 
 
-def _result(model, ctx, steps, events, quiescent, narrator) -> RunResult:
+def collect_result(model, ctx, steps, events, quiescent, narrator) -> RunResult:
     outcome, ec = "unfinished", []
     final: dict = {}
     for mode, f, _n in ctx.facts():

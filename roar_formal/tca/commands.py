@@ -7,10 +7,15 @@ from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
+from ..console import make_console
 from ..errors import RoarError
+
+#: the largest value ``tca-simulate --size NAME=N`` accepts (the unrolled tree is bounded too:
+#: ``unroll.MAX_MESSAGES``)
+MAX_SIZE = 100_000
 
 STATUS_STYLE = {"proved": "green", "consistent": "green", "refuted": "yellow", "inconsistent": "red",
                 "unknown": "red"}
@@ -82,7 +87,7 @@ def register(app: typer.Typer) -> None:
         from .metric import metric_outcome
         from .prover import dependencies, prove
 
-        console = Console(highlight=False)
+        console = make_console()
         rows = _select(_obligations(list(model or [])), list(theorems or []))
         if list_only:
             console.print(_list_table(rows))
@@ -99,7 +104,7 @@ def register(app: typer.Typer) -> None:
             ok = outcome.ok
             failed += not ok
             style = STATUS_STYLE[outcome.status] if ok else "bold red"
-            cells = [name, outcome.obligation.expect, f"[{style}]{outcome.status}[/]", f"{outcome.seconds:.3f}"]
+            cells = [name, outcome.obligation.expect, Text(outcome.status, style=style), f"{outcome.seconds:.3f}"]
             if deps:
                 used = dependencies(ob) if ob is not None and outcome.status == "proved" else None
                 cells.append(", ".join(used) if used else "")
@@ -109,11 +114,11 @@ def register(app: typer.Typer) -> None:
             if outcome.countermodel is not None and not outcome.obligation.is_consistency:
                 console.print(_countermodel_table(name, outcome.countermodel))
             if outcome.reason:
-                console.print(f"{name}: {outcome.reason}", markup=False)
+                console.print(f"{name}: {outcome.reason}")
             for line in outcome.details:
-                console.print(f"  {line}", markup=False)
+                console.print(f"  {line}")
         if failed:
-            console.print(f"[bold red]{failed} obligation(s) did not come out as expected[/]")
+            console.print(f"{failed} obligation(s) did not come out as expected", style="bold red")
             raise typer.Exit(1)
 
     @app.command("tca-check")
@@ -123,14 +128,14 @@ def register(app: typer.Typer) -> None:
         """Check a trace's task tree against the TCA axioms and its declared constraints; exit 1 on violations."""
         from .check import check_trace
 
-        console = Console(highlight=False)
+        console = make_console()
         report = check_trace(trace)
         tree = report.tree
         console.print(f"{trace}: {len(tree.messages)} messages, {len(tree.declared)} declared constraints, "
                       f"{report.instances} axiom instances ({report.residual} solved by Z3), "
-                      f"{report.seconds:.3f} s", markup=False)
+                      f"{report.seconds:.3f} s")
         if report.ok:
-            console.print("[green]no violations[/]")
+            console.print("no violations", style="green")
             return
         table = Table(title=f"{len(report.violations)} violation(s)")
         for col in ("#", "rule", "from", "messages", "trace lines"):
@@ -140,7 +145,7 @@ def register(app: typer.Typer) -> None:
                           ", ".join(map(str, v.lines[:10])) + (" ..." if len(v.lines) > 10 else ""))
         console.print(table)
         for i, v in enumerate(report.violations, start=1):
-            console.print(f"{i}. {v.explanation}", markup=False)
+            console.print(f"{i}. {v.explanation}")
         raise typer.Exit(1)
 
     @app.command("tca-simulate")
@@ -157,16 +162,25 @@ def register(app: typer.Typer) -> None:
         from .trace_events import dumps
         from .unroll import unroll
 
+        from ..trace.format import write_atomic
+
         loaded = load_model(model)
         sizes = {}
         for item in size or []:
             key, _, value = item.partition("=")
-            if key not in loaded.sizes or not value.isdigit() or int(value) < 1:
-                raise RoarError(f"--size {item}: expected NAME=N with NAME one of {', '.join(loaded.sizes)}")
+            value = value.strip()
+            if key not in loaded.sizes or not (value.isascii() and value.isdigit()) or len(value) > 6 \
+                    or not 1 <= int(value) <= MAX_SIZE:
+                raise RoarError(f"--size {item}: expected NAME=N with NAME one of {', '.join(loaded.sizes)} "
+                                f"and N from 1 to {MAX_SIZE:,}")
             sizes[key] = int(value)
         inst = unroll(loaded, sizes)
         text = dumps(simulate(inst, sample_timing(inst, random.Random(seed)), achievement=not no_achievement))
         if out is None:
             typer.echo(text, nl=False)
         else:
-            out.write_text(text, encoding="utf-8")
+            # through a temporary file: a failed or interrupted write leaves the previous output whole
+            try:
+                write_atomic(out, text)
+            except OSError as exc:
+                raise RoarError(f"{out}: cannot write: {exc.strerror or exc}") from None

@@ -8,7 +8,12 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Optional
 
+from ..errors import RoarError
 from .model import Model, Slot
+
+#: the most messages an unrolled tree may have (simulating, checking and proving on it must stay
+#: within memory: about 4 KB a message while simulating)
+MAX_MESSAGES = 200_000
 
 _INDEXED = re.compile(r"^(\w+)\[(k|k\+1)\]$")
 
@@ -52,8 +57,11 @@ def _child_id(parent: Node, slot: Slot, index: Optional[int], pos: int, root: st
     return prefix + name
 
 
-def unroll(model: Model, sizes: Optional[dict[str, int]] = None) -> Instance:
-    """The task tree the model's handlers build, with ``sizes`` overriding the model's."""
+def unroll(model: Model, sizes: Optional[dict[str, int]] = None, max_messages: int = MAX_MESSAGES) -> Instance:
+    """The task tree the model's handlers build, with ``sizes`` overriding the model's.
+
+    More than ``max_messages`` messages is an error (raised as soon as the count is passed,
+    before the tree takes the memory)."""
     sizes = {**model.sizes, **(sizes or {})}
     root_cls = model.classes[model.root]
     root = Node(model.root.lower(), model.root, root_cls.kind, None)
@@ -76,6 +84,10 @@ def unroll(model: Model, sizes: Optional[dict[str, int]] = None) -> Instance:
                     cid += "1"  # the head of a chain is its first link
                 child = Node(cid, slot.cls, child_cls.kind, node.id, pos)
                 nodes[cid] = child
+                if len(nodes) > max_messages:
+                    shown = ", ".join(f"{k} = {v:,}" for k, v in sizes.items())
+                    raise RoarError(f"{model.name}: with {shown} the task tree has more than {max_messages:,} "
+                                    "messages; use smaller sizes")
                 node.slots[f"{slot.name}[{i}]" if slot.repeat else slot.name] = cid
                 todo.append(child)
         constraints.extend(_instantiate(cls.constraints, node, sizes, cls))

@@ -1,0 +1,30 @@
+"""The one way the command line prints: rich consoles that never rewrite what they print.
+
+rich replaces ``:name:`` emoji codes and interprets ``[style]`` markup by
+default, so ``p.clf:100:5: ...`` would print as ``p.clf💯5: ...`` and a
+message id such as ``[bold]`` would vanish or raise. Every console of the
+command line comes from :func:`make_console`: emoji substitution, markup and
+highlighting are off. A line of ours that wants style passes ``markup=True``
+and escapes (:func:`rich.markup.escape`) every part that comes from input,
+or builds a :class:`rich.text.Text` (see :func:`styled`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rich.console import Console
+from rich.text import Text
+
+
+def make_console(**kwargs: Any) -> Console:
+    """A console with emoji substitution, markup and highlighting off (overridable per print)."""
+    kwargs.setdefault("highlight", False)
+    kwargs.setdefault("markup", False)
+    kwargs["emoji"] = False
+    return Console(**kwargs)
+
+
+def styled(*parts: Any) -> Text:
+    """Text from plain strings and ``(text, style)`` pairs; nothing in it is markup or emoji."""
+    return Text.assemble(*parts)

@@ -1,0 +1,98 @@
+"""Binding a spec's primitives to the robot: the functional-layer module's ``robot_registry()``.
+
+A spec's functional-layer module (``SPEC.py`` next to a ``.roar`` file)
+defines ``registry()``, the abstract binding that the explorer's outcomes
+come from, and, to run on the reference robot, ``robot_registry()``: the same
+primitive names with the same declared outcomes, whose callables return
+robot activities. The outcomes must agree: the explorer branches on the
+abstract registry's outcomes, and robot results are classified into the robot
+registry's, so a difference would compare two different abstractions.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+from ..errors import RoarError
+from ..roar.functional import Registry
+
+__all__ = ["RobotBinding", "load_robot_binding", "functional_module_of"]
+
+
+@dataclass
+class RobotBinding:
+    path: Path
+    abstract: Optional[Registry]    # registry(), when the module has one
+    robot: Registry                 # robot_registry()
+
+
+def functional_module_of(spec: Path, given: Optional[Path] = None) -> Path:
+    """``--functional FILE``, else ``SPEC.py`` next to a ``.roar`` file, else ``functional.py`` in a hyper folder."""
+    if given is not None:
+        if not Path(given).is_file():
+            raise RoarError(f"{given}: no such functional-layer module")
+        return Path(given)
+    spec = Path(spec)
+    cands = [spec / "functional.py", spec.with_suffix(".py")] if spec.is_dir() else [spec.with_suffix(".py")]
+    if spec.suffix == ".ability":
+        cands.append(spec.parent / "functional.py")
+    for c in cands:
+        if c.is_file():
+            return c
+    raise RoarError(f"{spec}: no functional-layer module found (looked for "
+                    f"{', '.join(str(c) for c in cands)}); pass --functional FILE")
+
+
+def load_robot_binding(spec: Path, given: Optional[Path] = None) -> RobotBinding:
+    """Import the spec's functional-layer module (the user named the spec: this is the one code we run)."""
+    path = functional_module_of(spec, given)
+    name = f"roar_robot_binding_{abs(hash(str(path.resolve())))}"
+    mspec = importlib.util.spec_from_file_location(name, path)
+    if mspec is None or mspec.loader is None:
+        raise RoarError(f"{path}: cannot be imported as a Python module")
+    mod = importlib.util.module_from_spec(mspec)
+    try:
+        mspec.loader.exec_module(mod)
+    except Exception as exc:
+        raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
+    make_robot = getattr(mod, "robot_registry", None)
+    if not callable(make_robot):
+        raise RoarError(f"{path}: defines no robot_registry(): the spec's primitives are not bound to the robot "
+                        f"(see docs/robot.md, 'Binding a spec to the robot')")
+    robot = _call(path, make_robot, "robot_registry")
+    abstract = _call(path, mod.registry, "registry") if callable(getattr(mod, "registry", None)) else None
+    if abstract is not None:
+        _same_outcomes(path, abstract, robot)
+    return RobotBinding(path, abstract, robot)
+
+
+def _call(path: Path, fn, what: str) -> Registry:
+    try:
+        reg = fn()
+    except RoarError:
+        raise
+    except Exception as exc:
+        raise RoarError(f"{path}: {what}() failed: {type(exc).__name__}: {exc}") from None
+    if not isinstance(reg, Registry):
+        raise RoarError(f"{path}: {what}() must return a roar_formal.roar.functional.Registry")
+    return reg
+
+
+def _same_outcomes(path: Path, abstract: Registry, robot: Registry) -> None:
+    problems = []
+    for name in robot.names():
+        if name == "now":
+            continue
+        a = abstract.get(name)
+        r = robot[name]
+        if a is None:
+            problems.append(f"'{name}' is bound to the robot but not in registry()")
+        elif [(o.name, o.success) for o in a.outcomes] != [(o.name, o.success) for o in r.outcomes]:
+            problems.append(f"'{name}': registry() declares outcomes "
+                            f"{', '.join(o.name for o in a.outcomes)} but robot_registry() declares "
+                            f"{', '.join(o.name for o in r.outcomes)}")
+    if problems:
+        raise RoarError(f"{path}: the robot binding and the abstract registry disagree", None, problems)

@@ -1,0 +1,199 @@
+"""``roar-verify simulate`` and ``roar-verify conform``: specs on the pymunk reference robot."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from ..errors import RoarError
+
+__all__ = ["register", "split_faults", "prepare"]
+
+
+def _console():
+    from rich.console import Console
+    return Console(highlight=False, emoji=False)
+
+
+def split_faults(names: list[str], scenario) -> tuple[list[str], list]:
+    """``--fault`` values: scenario fault points (``door_closes``) and primitive faults (``compute_path:1``)."""
+    from ..roar.run import parse_fault
+    world, prims = [], []
+    known = set(scenario.fault_names())
+    for n in names:
+        if n in known:
+            world.append(n)
+        else:
+            try:
+                prims.append(parse_fault(n))
+            except RoarError:
+                raise RoarError(f"--fault {n!r}: not a fault point of scenario '{scenario.name}' "
+                                f"({', '.join(sorted(known)) or 'it has none'}) nor a primitive fault "
+                                f"(NAME, NAME:K or NAME=OUTCOME)") from None
+    return world, prims
+
+
+def prepare(spec: Path, request: str, scenario: Path, functional: Optional[Path] = None):
+    """(spec AST, compiled model in run mode, robot binding, scenario): everything a robot run needs."""
+    from ..roar.compile import compile_spec
+    from ..roar.parser import load_spec
+    from .binding import load_robot_binding
+    from .scenario import load_scenario
+    sc = load_scenario(scenario)
+    spec_ast = load_spec(spec)
+    binding = load_robot_binding(spec, functional)
+    model = compile_spec(spec_ast, request, registry=binding.robot, functional="python")
+    return spec_ast, model, binding, sc
+
+
+def spec_files(spec_ast) -> list[str]:
+    from ..roar.ast import walk
+    return sorted({n.pos.file for n in walk(spec_ast) if n.pos is not None and Path(n.pos.file).is_file()})
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("simulate")
+    def simulate_cmd(
+        spec: Path = typer.Argument(..., help="A spec: a .roar file, a hyper .ability file, or a hyper folder."),
+        scenario: Path = typer.Option(..., "--scenario", "-s", help="The robot's world (TOML, models/scenarios/)."),
+        request: str = typer.Option(..., "--request", "-r", help="The constraint to enforce."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the scheduler and of every noise term."),
+        fault: list[str] = typer.Option([], "--fault", help="Turn on a fault point of the scenario (door_closes), "
+                                        "or make a primitive fail (NAME, NAME:K, NAME=OUTCOME). Repeatable."),
+        functional: Optional[Path] = typer.Option(None, "--functional",
+                                                  help="Functional-layer module (default: SPEC.py next to the spec)."),
+        trace: Optional[Path] = typer.Option(None, "--trace", help="Write the robot trace (JSON Lines) here."),
+        png: Optional[Path] = typer.Option(None, "--png", help="Draw the map, planned paths and trajectory here."),
+        max_steps: int = typer.Option(200_000, "--max-steps", help="Stop after this many CLF steps."),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the CLF rule of each event."),
+        as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+    ) -> None:
+        """Run SPEC on a request with its primitives on the pymunk robot, in simulated time.
+
+        Prints the ROAR-level trace with the simulated time and the robot's pose at each event.
+        Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
+        """
+        from ..trace.render import event_rows, print_events
+        from .report import draw_sim, write_robot_trace
+        from .sim import simulate
+
+        spec_ast, model, binding, sc = prepare(spec, request, scenario, functional)
+        world_faults, prim_faults = split_faults(fault, sc)
+        for p in (trace, png):
+            _check_output(p, spec_ast, spec, scenario)
+        console = _console()
+        if not as_json:
+            from rich.text import Text
+            console.print(Text(f"{spec}: request {request} on scenario {sc.name}, seed {seed}"
+                               + (f", faults {', '.join(fault)}" if fault else "")), soft_wrap=True)
+        res = simulate(model, binding.robot, sc, seed=seed, faults=world_faults, prim_faults=prim_faults,
+                       max_steps=max_steps)
+        rules = [st.rule for st in res.run.steps.raw]
+        if trace is not None:
+            _writing(trace, lambda: write_robot_trace(trace, res, str(spec), request, str(scenario),
+                                                      spec_files(spec_ast)))
+        if png is not None:
+            draw_sim(png, res)
+        x, y, th = res.robot.world.base.pose
+        if as_json:
+            print(json.dumps({"spec": str(spec), "scenario": str(scenario), "request": request, "seed": seed,
+                              "faults": fault, "outcome": res.outcome, "end": res.end,
+                              "time": round(res.robot.time, 4), "pose": [x, y, th],
+                              "clf_steps": len(res.run.steps), "error_context": res.run.error_context,
+                              "calls": [c.as_json() for c in res.calls],
+                              "uncovered": [c.n for c in res.uncovered()],
+                              "events": [dict(step=e.step, time=round(res.times[e.step - 1], 4), **e.as_json())
+                                         for e in res.events]}, indent=2))
+        else:
+            print_events(console, event_rows(res.events, res.times, res.poses, rules), verbose=verbose)
+            from rich.text import Text
+            end = {"quiescent": "quiescent", "horizon": f"horizon of {sc.horizon:g} s reached",
+                   "max-steps": f"stopped after {max_steps} CLF steps"}[res.end]
+            line = Text(f"request {res.outcome}", style="green" if res.ok else "red")
+            line.append(f" at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF steps ({end}); "
+                        f"robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
+            console.print(line, soft_wrap=True)
+            for e in res.run.error_context:
+                console.print(Text(f"  error context: {e}"), soft_wrap=True)
+            for c in res.uncovered():
+                console.print(Text(f"  warning: call {c.n} {c.function}({', '.join(map(str, c.args))}) at "
+                                   f"t = {c.t_end:.2f} s returned {c.result.as_json()}, which no declared outcome "
+                                   f"covers", style="yellow"), soft_wrap=True)
+            if trace is not None:
+                console.print(Text(f"trace written to {trace}"))
+            if png is not None:
+                console.print(Text(f"picture written to {png}"))
+        if not res.ok:
+            raise typer.Exit(1)
+
+    @app.command("conform")
+    def conform_cmd(
+        spec: Path = typer.Argument(..., help="A spec with a robot binding (robot_registry() in its module)."),
+        scenario: Path = typer.Option(..., "--scenario", "-s", help="The robot's world (TOML)."),
+        request: str = typer.Option(..., "--request", "-r", help="The constraint to enforce."),
+        runs: int = typer.Option(10, "--runs", "-n", help="Number of seeded runs."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the first run (run k uses seed + k)."),
+        fault: list[str] = typer.Option([], "--fault", help="Fault points always on (others are drawn at random)."),
+        no_random_faults: bool = typer.Option(False, "--no-random-faults",
+                                              help="Do not draw fault points at random."),
+        functional: Optional[Path] = typer.Option(None, "--functional", help="Functional-layer module."),
+        max_steps: int = typer.Option(200_000, "--max-steps", help="CLF step bound of each run."),
+        as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
+    ) -> None:
+        """Check the spec's declared outcomes against the robot: N seeded runs with random faults.
+
+        Every robot result must fall into a declared outcome, and every run must replay on the
+        compiled (abstract) model; an outcome the robot never produced is a warning. Exit status:
+        0 when the abstraction is sound for these runs, 1 when it is not, 2 on bad input.
+        """
+        from rich.text import Text
+        from .conform import conform
+
+        if runs < 1 or runs > 10_000:
+            raise RoarError(f"--runs {runs}: expected a number of runs from 1 to 10000")
+        spec_ast, model, binding, sc = prepare(spec, request, scenario, functional)
+        world_faults, prim_faults = split_faults(fault, sc)
+        if prim_faults:
+            raise RoarError("conform draws the scenario's fault points; primitive faults "
+                            f"({', '.join(map(str, prim_faults))}) are not allowed here")
+        console = _console()
+        rep = conform(spec_ast, request, model, binding, sc, runs=runs, seed=seed, always=world_faults,
+                      random_faults=not no_random_faults, max_steps=max_steps, spec_name=str(spec),
+                      on_run=None if as_json else
+                      (lambda k, r: console.print(Text(f"  run {k + 1}/{runs}: seed {r.seed}, faults "
+                                                       f"{', '.join(r.faults) or 'none'}: request {r.outcome} at "
+                                                       f"t = {r.time:.2f} s, {r.calls} calls"
+                                                       + (f", DIVERGES at step {r.divergence}" if r.divergence
+                                                          else "")), soft_wrap=True)))
+        if as_json:
+            print(json.dumps(rep.as_json(), indent=2))
+        else:
+            for line, style in rep.lines():
+                console.print(Text(line, style=style), soft_wrap=True)
+        if not rep.sound:
+            raise typer.Exit(1)
+
+
+def _check_output(path: Optional[Path], spec_ast, spec: Path, scenario: Path) -> None:
+    """Refuse, before the work starts, an output path that would overwrite an input or cannot be written."""
+    if path is None:
+        return
+    p = Path(path)
+    inputs = {Path(f).resolve() for f in spec_files(spec_ast)} | {Path(scenario).resolve(), Path(spec).resolve()}
+    if p.exists() and p.resolve() in inputs:
+        raise RoarError(f"{p}: refusing to overwrite an input file")
+    if p.exists() and p.is_dir():
+        raise RoarError(f"{p}: is a folder, expected a file path")
+    parent = p.parent if str(p.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise RoarError(f"{p}: cannot write: {parent} is not a folder")
+
+
+def _writing(path: Path, write) -> None:
+    try:
+        write()
+    except OSError as exc:
+        raise RoarError(f"{path}: cannot write: {exc.strerror or exc}") from None

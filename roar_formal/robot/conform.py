@@ -1,0 +1,292 @@
+"""Conformance of the abstraction: robot runs are paths of the model the explorer checks.
+
+The explorer never calls the robot: each primitive is a set of declared
+outcomes, and it branches on them. That is sound for a robot only if
+
+1. every concrete result the robot produces falls into a declared outcome
+   (the outcome's ``covers`` predicate, written next to it), and
+2. the robot's whole run, with each functional-layer answer replaced by the
+   outcome it falls into, is a path of the compiled model's state space: at
+   every step the model can take the same rule.
+
+:func:`replay_on_model` checks (2) for one robot trace and reports the first
+step where the robot did something the model does not allow, with both
+sides. :func:`conform` runs N seeded simulations with random fault draws and
+reports, per primitive, which outcomes the robot produced, which never
+occurred (a warning: the explorer considers behaviour this robot may never
+show) and which results no outcome covers (an error: the model is unsound for
+this robot).
+
+Matching a robot step to a model step is by rule name, and among the model's
+enabled steps with that name, by the facts consumed and produced, printed,
+with fresh names and numbers ignored: the model's values differ where an
+outcome's representative value stands for the robot's concrete one.
+"""
+
+from __future__ import annotations
+
+import random
+import re
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+from ..clf.printer import show
+from ..clf.terms import Root
+from ..errors import RoarError
+from .activity import CallResult
+from .sim import classify
+
+__all__ = ["best_match", "Divergence", "ModelReplay", "replay_on_model", "conform", "ConformReport", "RunSummary"]
+
+#: steps a robot run takes outside the model's rules, as pairs that leave the model state unchanged
+TIMING_RULES = ("poll_sleep", "poll_wake")
+
+
+@dataclass
+class Divergence:
+    step: int
+    rule: str
+    reason: str
+    robot: list          # what the robot did (lines)
+    model: list          # what the model allows there (lines)
+
+    def lines(self) -> list[str]:
+        out = [f"step {self.step} ({self.rule}): {self.reason}", "  robot:"]
+        out += [f"    {x}" for x in self.robot]
+        out.append("  model:")
+        out += [f"    {x}" for x in self.model]
+        return out
+
+
+@dataclass
+class ModelReplay:
+    steps: int                       # robot steps replayed
+    divergence: Optional[Divergence]
+    outcomes: list                   # (step, function, outcome) of every functional-layer answer
+    approximate: int = 0             # steps matched by rule name with different values
+
+    @property
+    def ok(self) -> bool:
+        return self.divergence is None
+
+
+_FRESH = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")
+_NUM = re.compile(r"(?<![A-Za-z_#])-?\d+(?:\.\d+)?(?:/\d+)?")
+
+
+def _shape(text: str) -> str:
+    return _NUM.sub("N", _FRESH.sub("#", text))
+
+
+def _printed(step) -> tuple[list, list]:
+    return ([show(f) for _m, f in step.consumed if type(f) is Root],
+            [show(f) for _m, f in step.produced if type(f) is Root])
+
+
+def _score(want: tuple, got: tuple) -> tuple[int, int]:
+    """(exact shape matches, same-shape-ignoring-values matches) between two printed steps."""
+    exact = same = 0
+    for w, g in zip(want, got):
+        gs = [_FRESH.sub("#", x) for x in g]
+        gv = [_shape(x) for x in g]
+        for x in w:
+            xs = _FRESH.sub("#", x)
+            if xs in gs:
+                gs.remove(xs)
+                exact += 1
+            if _shape(x) in gv:
+                gv.remove(_shape(x))
+                same += 1
+    return exact, same
+
+
+def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelReplay:
+    """Replay robot trace step records on the abstract (exploration-mode) compiled model."""
+    prog = abstract_model.program()
+    start = next(d for d in prog.sig.directives if hasattr(d, "start"))
+    state = prog.start_context(start.start)
+    outcomes = []
+    approx = 0
+    n = 0
+    for rec in records:
+        n += 1
+        rule = rec.get("rule")
+        if rule in TIMING_RULES:
+            continue
+        want = (list(rec.get("consumed", [])), list(rec.get("produced", [])))
+        choices = prog.steps(state)
+        if rule == "functional_layer":
+            call = rec.get("call")
+            if not isinstance(call, dict) or not isinstance(call.get("result"), dict):
+                return ModelReplay(n, Divergence(int(rec.get("step", n)), rule,
+                                                 "a functional-layer step without its call record", want[0], []),
+                                   outcomes, approx)
+            fname = str(call.get("function", "?"))
+            owner, _, name = fname.rpartition("::")
+            prim = registry.lookup(name, owner or None)
+            fc = next((c for c, (o, nm) in abstract_model.functions.items() if nm == name and o == (owner or o)),
+                      None)
+            result = CallResult.from_json(call["result"])
+            forced = call.get("forced")
+            if forced:
+                names = [str(forced).split(": ", 1)[-1]]
+            elif prim is None:
+                names = []
+            else:
+                names = classify(prim.outcomes, result)
+            if not names:
+                declared = ", ".join(o.name for o in prim.outcomes) if prim is not None else "none"
+                return ModelReplay(n, Divergence(
+                    int(rec.get("step", n)), rule,
+                    f"the robot's result of {fname} is covered by no declared outcome",
+                    [f"{fname}({', '.join(map(str, call.get('args', [])))}) -> {call['result']}"],
+                    [f"declared outcomes of {fname}: {declared}"]), outcomes, approx)
+            labels = [f"outcome_{fc}_{o}" for o in names]
+            cands = [c for c in choices if c.rule in labels]
+            if not cands:
+                return ModelReplay(n, Divergence(
+                    int(rec.get("step", n)), rule,
+                    f"the model cannot answer {fname} with outcome {names[0]} here",
+                    [f"{fname} -> {names[0]}"] + want[0],
+                    [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing'}"]),
+                    outcomes, approx)
+            best = best_match(cands, state, prog, want, by_pending=True)
+            outcomes.append((n, fname, _oname(best[0].rule, fc)))
+            state = best[1]
+            continue
+        cands = [c for c in choices if c.rule == rule]
+        if not cands:
+            return ModelReplay(n, Divergence(
+                int(rec.get("step", n)), str(rule), "the model cannot take this rule here",
+                [f"consumed: {x}" for x in want[0]] + [f"produced: {x}" for x in want[1]],
+                [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing (quiescent)'}"]),
+                outcomes, approx)
+        choice, nxt, exact = best_match(cands, state, prog, want)
+        if not exact:
+            approx += 1
+        state = nxt
+    return ModelReplay(n, None, outcomes, approx)
+
+
+def _oname(rule: str, fc: str) -> str:
+    return rule[len(f"outcome_{fc}_"):]
+
+
+def best_match(cands, state, prog, want, by_pending: bool = False):
+    """The candidate whose printed step is closest to the robot's: (choice, next state, exact?)."""
+    best = None
+    for c in cands:
+        nxt, step = prog.successor(state, c)
+        got = _printed(step)
+        if by_pending:   # an outcome: compare the call it answers (the pending fact) only
+            got = (got[0][:1], [])
+            w = ([x for x in want[0] if x.startswith("pending ")][:1], [])
+        else:
+            w = want
+        ex, same = _score(w, got)
+        total = sum(len(x) for x in w)
+        key = (ex, same)
+        exact = ex == total and all(len(a) == len(b) for a, b in zip(w, got))
+        if best is None or key > best[0]:
+            best = (key, c, nxt, exact)
+    return best[1], best[2], best[3]
+
+
+# ---------------------------------------------------------------------- conformance runs
+
+
+@dataclass
+class RunSummary:
+    seed: int
+    faults: tuple
+    outcome: str
+    time: float
+    calls: int
+    uncovered: list                  # CallRecord
+    divergence: Optional[Divergence]
+
+    def as_json(self) -> dict:
+        return {"seed": self.seed, "faults": list(self.faults), "outcome": self.outcome,
+                "time": round(self.time, 4), "calls": self.calls,
+                "uncovered": [c.as_json() for c in self.uncovered],
+                "divergence": None if self.divergence is None else self.divergence.lines()}
+
+
+@dataclass
+class ConformReport:
+    spec: str
+    scenario: str
+    runs: list = field(default_factory=list)
+    seen: dict = field(default_factory=dict)        # primitive -> {outcome: count}
+    declared: dict = field(default_factory=dict)    # primitive -> [outcome names]
+
+    @property
+    def sound(self) -> bool:
+        return all(not r.uncovered and r.divergence is None for r in self.runs)
+
+    def never(self) -> dict:
+        return {p: [o for o in outs if not self.seen.get(p, {}).get(o)] for p, outs in self.declared.items()
+                if any(not self.seen.get(p, {}).get(o) for o in outs)}
+
+    def as_json(self) -> dict:
+        return {"spec": self.spec, "scenario": self.scenario, "sound": self.sound,
+                "runs": [r.as_json() for r in self.runs],
+                "outcomes": {p: {o: self.seen.get(p, {}).get(o, 0) for o in outs}
+                             for p, outs in self.declared.items()},
+                "never": self.never()}
+
+    def lines(self) -> list[tuple[str, str]]:
+        out = [(f"conformance of {self.spec} on scenario {self.scenario}: {len(self.runs)} runs", "bold")]
+        out.append(("outcomes the robot produced, per primitive:", ""))
+        for p, outs in sorted(self.declared.items()):
+            counts = ", ".join(f"{o} {self.seen.get(p, {}).get(o, 0)}" for o in outs)
+            out.append((f"  {p}: {counts}", ""))
+        for p, outs in sorted(self.never().items()):
+            out.append((f"warning: {p}: the robot never produced {', '.join(outs)} "
+                        f"(the explorer considers it; these runs never showed it)", "yellow"))
+        for r in self.runs:
+            for c in r.uncovered:
+                out.append((f"error: seed {r.seed}: call {c.n} {c.function}({', '.join(map(str, c.args))}) at "
+                            f"t = {c.t_end:.2f} s returned {c.result.as_json()}: no declared outcome covers it "
+                            f"(the model is unsound for this robot)", "red"))
+            if r.divergence is not None and not r.uncovered:
+                out.append((f"error: seed {r.seed}: the robot run is not a path of the model:", "red"))
+                out += [(f"  {x}", "red") for x in r.divergence.lines()]
+        out.append(("sound for these runs: every result covered, every run a path of the model" if self.sound
+                    else "NOT sound: see the errors above", "green" if self.sound else "red"))
+        return out
+
+
+def conform(spec_ast, request: str, model, binding, scenario, runs: int = 10, seed: int = 0, always=(),
+            random_faults: bool = True, max_steps: int = 200_000, spec_name: str = "spec",
+            on_run: Optional[Callable[[int, RunSummary], None]] = None) -> ConformReport:
+    """N seeded robot runs (random fault draws), each classified and replayed on the abstract model."""
+    from ..roar.compile import compile_spec
+    from .sim import simulate
+    from .report import step_records
+
+    abstract = compile_spec(spec_ast, request, registry=binding.abstract or binding.robot, functional="abstract")
+    rep = ConformReport(spec_name, scenario.name)
+    for owner, name in sorted(model.functions.values(), key=lambda x: (x[0] or "", x[1])):
+        prim = binding.robot.lookup(name, owner)
+        if prim is not None and name != "now":
+            rep.declared[f"{owner}::{name}" if owner else name] = [o.name for o in prim.outcomes]
+    draw = random.Random(seed)
+    for k in range(runs):
+        faults = list(always)
+        if random_faults:
+            for f in scenario.fault_names():
+                if f not in faults and draw.random() < scenario.faults[f].probability:
+                    faults.append(f)
+        res = simulate(model, binding.robot, scenario, seed=seed + k, faults=faults, max_steps=max_steps)
+        for c in res.calls:
+            if c.outcome is not None and c.forced is None:
+                rep.seen.setdefault(c.function, {})
+                rep.seen[c.function][c.outcome] = rep.seen[c.function].get(c.outcome, 0) + 1
+        rp = replay_on_model(abstract, binding.robot, step_records(res))
+        summary = RunSummary(seed + k, tuple(faults), res.outcome, res.robot.time, len(res.calls),
+                             res.uncovered(), rp.divergence)
+        rep.runs.append(summary)
+        if on_run:
+            on_run(k, summary)
+    return rep

@@ -1,0 +1,234 @@
+"""Replaying a model counterexample on the robot: does the physics realise it?
+
+The explorer's counterexample is an order of agent steps and functional-layer
+outcomes. Here the spec runs in simulated time with its primitives on the
+robot, but the order is the counterexample's: each agent step is the enabled
+step with the same rule (closest facts, values may differ where the robot's
+concrete value stands for an outcome's representative one); each outcome
+step starts the call on the robot (if it has not started yet), lets the
+physics run until the call ends, and checks that the robot's result falls
+into the outcome the counterexample names. Calls that end meanwhile wait,
+answered, until the counterexample consumes them; a poll found false lets the
+robot run for the wait's period, as in a simulation.
+
+The verdict: *realised* (every step happened on the robot: for a deadlock,
+the robot run is then stuck as well; for a lasso, the cycle was driven
+``loops`` times) or *diverges* at the first step the robot does not take,
+with both sides shown.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+from ..clf.context import LIN
+from ..clf.terms import Const, Root, const
+from ..errors import RoarError
+from ..roar.run import Narrator, Values, list_items, site_of
+from .activity import Activity, CallResult
+from .conform import TIMING_RULES, best_match
+from .robot import Robot
+from .sim import DEFAULT_POLL, CallRecord, classify
+
+__all__ = ["OnRobot", "replay_on_robot"]
+
+
+@dataclass
+class OnRobot:
+    realised: bool
+    steps: int                   # counterexample steps taken on the robot
+    total: int                   # counterexample steps to take (the cycle counted ``loops`` times)
+    time: float
+    pose: tuple
+    message: str
+    lines: list = field(default_factory=list)     # what happened, for people
+    robot: Optional[Robot] = None
+    calls: list = field(default_factory=list)
+
+
+def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 0, faults=(),
+                    loops: int = 3, on_line: Optional[Callable[[str], None]] = None) -> OnRobot:
+    """Drive ``model`` (compiled in run mode) on the robot in the order of the counterexample ``records``."""
+    stem = [r for r in records if not r.get("loop")]
+    cycle = [r for r in records if r.get("loop")]
+    order = stem + cycle * max(1, loops) if cycle else stem
+    prog = model.program()
+    start = next(d for d in prog.sig.directives if hasattr(d, "start"))
+    state = prog.start_context(start.start)
+    robot = Robot(scenario, seed=seed, faults=faults)
+    values = Values(model)
+    narrator = Narrator(model)
+    for _mode, f, _n in state.facts():
+        if type(f) is Root and isinstance(f.head, Const) and f.head.name == "rq":
+            narrator.label(f.args[0])
+            narrator.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
+    lines: list[str] = []
+    calls: list[CallRecord] = []
+    by_dest: dict = {}          # dest -> CallRecord
+    running: dict = {}          # robot handle -> dest
+    answered: dict = {}         # dest -> CallResult (ended on the robot, not yet consumed by the counterexample)
+
+    def say(text: str) -> None:
+        lines.append(text)
+        if on_line:
+            on_line(text)
+
+    def done(realised: bool, n: int, msg: str) -> OnRobot:
+        say(msg)
+        return OnRobot(realised, n, len(order), robot.time, tuple(robot.world.base.pose), msg, lines, robot, calls)
+
+    def advance(until: Optional[float] = None, dest=None) -> None:
+        """Run the physics until the call ``dest`` has an answer, or until time ``until``."""
+        while True:
+            if dest is not None and dest in answered:
+                return
+            if until is not None and robot.time >= until - 1e-9:
+                return
+            if robot.time >= robot.horizon - 1e-9:
+                return
+            for h, res in robot.step():
+                d = running.pop(h)
+                answered[d] = res
+                by_dest[d].result = res
+                by_dest[d].t_end = robot.time
+
+    def launch(f) -> None:
+        d = f.args[2]
+        if d in by_dest:
+            return
+        fc = f.args[0].head.name
+        owner, name = model.functions[fc]
+        tys = model.fn_params.get(fc, [])
+        args = [values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(f.args[1]))]
+        rec = CallRecord(len(calls) + 1, f"{owner}::{name}" if owner else name, fc, owner or "?", args, 0, robot.time)
+        calls.append(rec)
+        by_dest[d] = rec
+        if owner is None and name == "now":
+            answered[d] = CallResult(int(round(robot.time * 1000)), False, "now", {})
+            return
+        prim = registry.lookup(name, owner)
+        if prim is None or prim.fn is None:
+            raise RoarError(f"the robot binding has no implementation of '{rec.function}'")
+        try:
+            v = prim(*args)
+            if isinstance(v, Activity):
+                h, res = robot.start(v)
+                if res is None:
+                    running[h] = d
+                    return
+            else:
+                res = v if isinstance(v, CallResult) else CallResult(v, False, "returned", {})
+        except RoarError:
+            raise
+        except Exception as exc:
+            res = CallResult(None, True, f"raised {type(exc).__name__}: {exc}", {})
+        answered[d] = res
+        rec.result = res
+        rec.t_end = robot.time
+
+    def launch_pending(ctx) -> None:
+        bag = ctx.index.get(Const("pending"))
+        for f in (list(bag.items) if bag else []):
+            launch(f)
+
+    for n, rec in enumerate(order, 1):
+        rule = rec.get("rule", "")
+        if rule in TIMING_RULES:
+            continue
+        if rec.get("loop") and (n == len(stem) + 1):
+            say(f"-- the cycle, driven {max(1, loops)} times --")
+        launch_pending(state)
+        want = (list(rec.get("consumed", [])), list(rec.get("produced", [])))
+        if rule.startswith("outcome_"):
+            fc, oname = _split_outcome(rule, model)
+            bag = state.index.get(Const("pending"))
+            cands = [f for f in (list(bag.items) if bag else []) if f.args[0].head.name == fc]
+            if not cands:
+                return done(False, n - 1, f"diverges at step {n}: the counterexample answers {fc} with {oname}, "
+                                          f"but the robot run has no such call under way")
+            cands.sort(key=lambda f: by_dest[f.args[2]].n)
+            f = cands[0]
+            d = f.args[2]
+            advance(dest=d)
+            crec = by_dest[d]
+            if d not in answered:
+                return done(False, n - 1, f"diverges at step {n}: {crec.function}({_args(crec)}) had not ended "
+                                          f"when the scenario's horizon of {robot.horizon:g} s was reached")
+            res = answered.pop(d)
+            owner, name = model.functions[fc]
+            prim = registry.lookup(name, owner)
+            names = classify(prim.outcomes, res) if prim is not None else []
+            crec.covering = names
+            crec.outcome = names[0] if names else None
+            if oname not in names:
+                return done(False, n - 1,
+                            f"diverges at step {n}: the counterexample needs {crec.function}({_args(crec)}) to end "
+                            f"'{oname}'; on the robot it ended {res.status} "
+                            f"({', '.join(names) or 'no declared outcome'}) at t = {robot.time:.2f} s")
+            state = _answer(state, f, crec, res, model, values)
+            say(f"{n:>5} {robot.time:8.2f}s  {crec.function}({_args(crec)}) -> {oname} ({res.status})")
+            continue
+        choices = [c for c in prog.steps(state) if c.rule == rule]
+        if not choices:
+            enabled = sorted({c.rule for c in prog.steps(state)})
+            return done(False, n - 1, f"diverges at step {n}: the counterexample takes {rule}; on the robot the "
+                                      f"enabled rules are {', '.join(enabled) or 'none'}")
+        choice, state, _exact = best_match(choices, state, prog, want)
+        step_printed = rec.get("event") or {}
+        text = step_printed.get("text") if isinstance(step_printed, dict) else None
+        if text:
+            say(f"{n:>5} {robot.time:8.2f}s  {step_printed.get('agent', '')}: {text}")
+        period = _poll_period(model, rule)
+        if period is not None and any(p.startswith("ctl ") and " m_run " in p for p in want[1]):
+            advance(until=robot.time + period)
+    launch_pending(state)
+    if cycle:
+        return done(True, len(order), f"realised: the cycle of {len(cycle)} steps was driven {max(1, loops)} times "
+                                      f"on the robot (t = {robot.time:.2f} s)")
+    # a deadlock: nothing may happen any more on the robot either
+    advance(until=robot.horizon)
+    enabled = prog.steps(state)
+    if enabled or answered or running:
+        what = (f"enabled rules {', '.join(sorted({c.rule for c in enabled}))}" if enabled else
+                "a call still under way or answered")
+        return done(False, len(order), f"not realised: after the counterexample the robot run goes on ({what})")
+    return done(True, len(order), f"realised: the robot run is stuck where the counterexample ends "
+                                  f"(nothing enabled, no call under way, t = {robot.time:.2f} s)")
+
+
+def _split_outcome(rule: str, model) -> tuple[str, str]:
+    body = rule[len("outcome_"):]
+    for fc in sorted(model.functions, key=len, reverse=True):
+        if body.startswith(fc + "_"):
+            return fc, body[len(fc) + 1:]
+    raise RoarError(f"the counterexample's step {rule} names a function the spec does not have "
+                    f"(was it made from another spec?)")
+
+
+def _answer(state, f, crec, res: CallResult, model, values):
+    rty = model.fn_types.get(crec.fc)
+    if res.failed:
+        term = const("vbool", const("ff")) if rty == "bool" else None
+    elif rty is None or (res.value is None and rty != "bool"):
+        term = const("vunit")
+    else:
+        term = values.term(res.value, rty)
+    ans = const("return", term, f.args[2]) if term is not None else const("callfail", f.args[2])
+    new = state.copy()
+    new.remove_fact(f, LIN)
+    new.add_fact(ans, LIN)
+    return new
+
+
+def _poll_period(model, rule: str) -> Optional[float]:
+    if not rule.endswith("_false"):
+        return None
+    site = model.sites.get(site_of(rule))
+    if site is None or site.kind != "wait":
+        return None
+    return site.period_ms / 1000.0 if site.period_ms else DEFAULT_POLL
+
+
+def _args(rec: CallRecord) -> str:
+    return ", ".join(str(a) for a in rec.args)

@@ -1,0 +1,80 @@
+"""Traces for people: one step table shared by ``run``, ``simulate`` and ``replay``.
+
+A row is one ROAR event: the CLF step it comes from, the simulated time
+when there is one, the agent, the event, and the robot's pose when the run
+had a robot. Input-derived text is printed with rich markup and emoji
+substitution off, so nothing a spec or trace contains can turn into a style
+or a picture.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Optional, Sequence
+
+__all__ = ["Row", "event_rows", "print_events", "KIND_STYLE"]
+
+KIND_STYLE = {
+    "sent": "cyan", "state": "bold", "tasks": "magenta", "recipe": "magenta", "recipe-end": "magenta",
+    "primitive-start": "blue", "primitive-end": "blue", "write": "green", "pause": "yellow",
+    "resume": "yellow", "abort": "yellow", "conflict": "red", "calling-context": "red",
+}
+
+
+@dataclass(frozen=True)
+class Row:
+    step: int
+    kind: str
+    agent: str
+    text: str
+    time: Optional[float] = None
+    pose: Optional[tuple] = None
+    rule: Optional[str] = None
+
+    def cells(self) -> list[str]:
+        out = [f"{self.step:>5}"]
+        if self.time is not None:
+            out.append(f"{self.time:7.2f}s")
+        out.append(f"{self.agent:<12}")
+        out.append(self.text)
+        return out
+
+
+def _get(ev, key, default=None):
+    return ev.get(key, default) if isinstance(ev, dict) else getattr(ev, key, default)
+
+
+def event_rows(events: Iterable, times: Optional[Sequence[float]] = None, poses: Optional[Sequence] = None,
+               rules: Optional[Sequence[str]] = None) -> list[Row]:
+    """Rows of the events; ``times``, ``poses`` and ``rules`` are per CLF step (index step - 1)."""
+    rows = []
+    for ev in events:
+        i = int(_get(ev, "step", 0))
+        t = times[i - 1] if times is not None and 0 < i <= len(times) else None
+        p = tuple(poses[i - 1]) if poses is not None and 0 < i <= len(poses) and poses[i - 1] is not None else None
+        r = rules[i - 1] if rules is not None and 0 < i <= len(rules) else None
+        rows.append(Row(i, str(_get(ev, "kind", "")), str(_get(ev, "agent", "")), str(_get(ev, "text", "")),
+                        t, p, r))
+    return rows
+
+
+def print_events(console, rows: Iterable[Row], verbose: bool = False, poses: bool = True) -> None:
+    """Print rows on a rich console: styled by kind, input text never read as markup."""
+    from rich.text import Text
+
+    last_pose = None
+    for row in rows:
+        line = Text()
+        line.append(f"{row.step:>5} ", style="dim")
+        if row.time is not None:
+            line.append(f"{row.time:8.2f}s ", style="dim")
+        line.append(f"{row.agent:<12} ")
+        line.append(row.text, style=KIND_STYLE.get(row.kind, ""))
+        if poses and row.pose is not None and row.pose != last_pose:
+            x, y, th = row.pose[:3]
+            import math
+            line.append(f"   @ ({x:.2f}, {y:.2f}, {math.degrees(th):.0f}°)", style="dim")
+            last_pose = row.pose
+        if verbose and row.rule:
+            line.append(f"  ({row.rule})", style="dim")
+        console.print(line, soft_wrap=True)
