@@ -111,7 +111,9 @@ def register(app: typer.Typer) -> None:
             print_events(console, event_rows(res.events, res.times, res.poses, rules), verbose=verbose)
             from rich.text import Text
             end = {"quiescent": "quiescent", "horizon": f"horizon of {sc.horizon:g} s reached",
-                   "max-steps": f"stopped after {max_steps} CLF steps"}[res.end]
+                   "max-steps": f"stopped after {max_steps} CLF steps",
+                   "zero-time loop": "stopped: the agents kept stepping without the robot's time advancing, "
+                                     "a loop that calls no primitive taking time"}[res.end]
             line = Text(f"request {res.outcome}", style="green" if res.ok else "red")
             line.append(f" at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF steps ({end}); "
                         f"robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")

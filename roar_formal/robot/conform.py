@@ -133,7 +133,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
             elif prim is None:
                 names = []
             else:
-                names = classify(prim.outcomes, result)
+                names = classify(prim.outcomes, result, abstract_model.fn_types.get(fc))
             if not names:
                 declared = ", ".join(o.name for o in prim.outcomes) if prim is not None else "none"
                 return ModelReplay(n, Divergence(

@@ -158,7 +158,7 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
             res = answered.pop(d)
             owner, name = model.functions[fc]
             prim = registry.lookup(name, owner)
-            names = classify(prim.outcomes, res) if prim is not None else []
+            names = classify(prim.outcomes, res, model.fn_types.get(fc)) if prim is not None else []
             crec.covering = names
             crec.outcome = names[0] if names else None
             if oname not in names:

@@ -11,6 +11,7 @@ seed and faults, and holds the driven trajectory and the planned paths.
 from __future__ import annotations
 
 import hashlib
+import re
 import math
 from pathlib import Path
 from typing import Optional
@@ -39,8 +40,26 @@ def _r(x: float, k: int = 4) -> float:
     return round(float(x), k)
 
 
+_FRESH = re.compile(r"([A-Za-z_][A-Za-z0-9_']*)#(\d+)")
+
+
+class _Renamer:
+    """Fresh names numbered in order of first appearance in the run (the engine numbers them per
+    process), so one seed gives one trace file, byte for byte, whatever ran before it."""
+
+    def __init__(self):
+        self.names: dict = {}
+
+    def __call__(self, text: str) -> str:
+        def sub(m):
+            n = self.names.setdefault(m.group(0), len(self.names) + 1)
+            return f"{m.group(1)}#{n}"
+        return _FRESH.sub(sub, text)
+
+
 def step_records(res: SimResult) -> list[dict]:
     """One record per CLF step: rule, facts, ROAR event, simulated time, true pose, and the call it answers."""
+    ren = _Renamer()
     by_step: dict[int, list] = {}
     for e in res.events:
         by_step.setdefault(e.step, []).append(e.as_json())
@@ -49,7 +68,8 @@ def step_records(res: SimResult) -> list[dict]:
     for i, (rule, consumed, produced) in enumerate(res.run.steps, 1):
         evs = by_step.get(i)
         x, y, th = res.poses[i - 1]
-        rec = {"step": i, "rule": rule, "consumed": consumed, "produced": produced,
+        rec = {"step": i, "rule": rule, "consumed": [ren(x) for x in consumed],
+               "produced": [ren(x) for x in produced],
                "event": (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None,
                "loop": False, "time": _r(res.times[i - 1]), "pose": [_r(x), _r(y), _r(th)]}
         if i in calls:

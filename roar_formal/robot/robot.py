@@ -29,6 +29,8 @@ BLOCKED_PROGRESS = 0.05
 BLOCKED_WINDOW = 3.0
 #: an obstacle seen closer than this on the path ahead stops the base (it waits, it does not push)
 SAFETY_DISTANCE = 0.7
+#: a base waiting this long for an obstacle on its path to go away gives up (blocked)
+WAIT_LIMIT = 5.0
 #: trajectory samples for traces and pictures, every this many seconds
 SAMPLE_PERIOD = 0.1
 
@@ -170,9 +172,13 @@ class Robot:
         if self._ahead is None:   # judged once per scan: the safety stop reacts to scans
             self._ahead = self._obstacle_ahead(pose)
         if self._ahead:
+            if self.follow_state != "waiting":
+                self._progress = (self.time, f.remaining(pose))
             self.follow_state = "waiting"
             self.world.base.set_wheel_speeds(0.0, 0.0)
             return
+        if self.follow_state == "waiting":   # the way is clear again: progress counts from now
+            self._progress = (self.time, f.remaining(pose))
         self.follow_state = "following"
         v, w = f.command(pose)
         cfg = self.scenario.robot
@@ -185,8 +191,11 @@ class Robot:
             return
         rem = self.follower.remaining(self.world.base.odometry)
         t0, best = self._progress
-        if self.follow_state == "waiting":   # stopped on purpose: not blocked
-            self._progress = (self.time, min(rem, best))
+        if self.follow_state == "waiting":   # stopped on purpose: blocked only when it lasts
+            if self.time - t0 > WAIT_LIMIT:
+                self.follow_state = "blocked"
+                self.follower = None
+                self.world.base.set_wheel_speeds(0.0, 0.0)
         elif rem < best - BLOCKED_PROGRESS:
             self._progress = (self.time, rem)
         elif self.time - t0 > BLOCKED_WINDOW:

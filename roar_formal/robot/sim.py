@@ -45,6 +45,9 @@ __all__ = ["CallRecord", "SimResult", "simulate", "classify", "DEFAULT_POLL"]
 
 #: the poll period of a wait written without one (s)
 DEFAULT_POLL = 0.1
+#: this many CLF steps without simulated time advancing end a run: a loop that takes no time
+#: (a retry of a primitive that fails at once) would otherwise spin to the step bound
+ZENO_STEPS = 5_000
 
 
 @dataclass
@@ -133,8 +136,14 @@ class _PrintedSteps(Sequence):
         return got
 
 
-def classify(outcomes, result: CallResult) -> list[str]:
-    """The names of the declared outcomes that cover ``result`` (see Outcome.covers)."""
+def classify(outcomes, result: CallResult, rty: Optional[str] = None) -> list[str]:
+    """The names of the declared outcomes that cover ``result`` (see Outcome.covers).
+
+    Without a ``covers`` predicate an outcome covers the results whose success is its own
+    and, when it declares a value, whose value is that value; a function of result type
+    ``rty`` = bool that returns anything but a bool (and did not fail) is covered by none."""
+    if rty == "bool" and not result.failed and not isinstance(result.value, bool):
+        return [o.name for o in outcomes if o.covers is not None and _covers(o, result)]
     out = []
     for o in outcomes:
         if o.covers is not None:
@@ -148,6 +157,13 @@ def classify(outcomes, result: CallResult) -> list[str]:
         if hit:
             out.append(o.name)
     return out
+
+
+def _covers(o, result) -> bool:
+    try:
+        return bool(o.covers(result))
+    except Exception:
+        return False
 
 
 def _same_value(a, b) -> bool:
@@ -301,7 +317,7 @@ class _Sim:
         rec.result = res
         owner, name = self.model.functions[rec.fc]
         prim = self.registry.lookup(name, owner)
-        rec.covering = classify(prim.outcomes, res) if prim is not None else []
+        rec.covering = classify(prim.outcomes, res, self.model.fn_types.get(rec.fc)) if prim is not None else []
         rec.outcome = rec.covering[0] if len(rec.covering) >= 1 else None
         rty = self.model.fn_types.get(rec.fc)
         if res.failed:
@@ -335,10 +351,21 @@ class _Sim:
         pending = Const("pending")
         launched: set = set()
         end = "quiescent"
+        zeno_mark = (robot.time, 0)
         while True:
-            if not self.runner.run(self.max_steps - self.runner.steps if self.max_steps else None):
-                end = "max-steps"
+            budget = self.max_steps - self.runner.steps if self.max_steps else None
+            budget = ZENO_STEPS if budget is None else min(budget, ZENO_STEPS)
+            quiet = self.runner.run(self.runner.steps + budget)
+            if robot.time > zeno_mark[0]:
+                zeno_mark = (robot.time, len(self.steps))
+            elif len(self.steps) - zeno_mark[1] >= ZENO_STEPS:
+                end = "zero-time loop"
                 break
+            if not quiet:
+                if self.max_steps and self.runner.steps >= self.max_steps:
+                    end = "max-steps"
+                    break
+                continue
             bag = self.ctx.index.get(pending)
             fresh = [f for f in (list(bag.items) if bag else []) if f.args[2] not in launched]
             fresh.sort(key=lambda f: self.by_dest[f.args[2]].n)

@@ -71,6 +71,16 @@ class Schedule:
                 self.waits[second].append(("ach_end", first))
             else:
                 self.seq_before[second].append(first)
+        # does m or an ancestor of m wait for a seq_ach?
+        self.seq_waits: dict[str, bool] = {}
+        for m in inst.nodes:
+            chain, here = [], m
+            while here is not None and here not in self.seq_waits:
+                chain.append(here)
+                here = inst.nodes[here].parent
+            above = self.seq_waits[here] if here is not None else False
+            for x in reversed(chain):
+                above = self.seq_waits[x] = above or bool(self.seq_before[x])
 
     # the rules, each a list of dependencies and how to combine their values
 
@@ -100,9 +110,16 @@ class Schedule:
             deps = [("sent", m)]
             if node.kind != "query":
                 deps += self.waits[m]
-                if node.kind in ("command", "monitor") or not self._achieved_by_children(m):
-                    deps += [("ach_end", x) for a in self._ancestors(m) for x in self.seq_before[a]]
+                if (node.kind in ("command", "monitor") or not self._achieved_by_children(m)) and self.seq_waits[m]:
+                    deps.append(("seq_wait", m))
             return deps, lambda v: self.maximum(v) + t.delay
+        if what == "seq_wait":
+            # the latest achievement end m waits for: seq_ach(x, y) with y m or an ancestor of m
+            # (one key per message, so a deep chain costs linear time, not quadratic)
+            deps = [("ach_end", x) for x in self.seq_before[m]]
+            if node.parent is not None and self.seq_waits[node.parent]:
+                deps.append(("seq_wait", node.parent))
+            return deps, lambda v: self.maximum(v)
         if what == "end":
             asked = self._queries(m)
             return [("end", asked[-1].id) if asked else ("start", m)], lambda v: v[0] + t.work

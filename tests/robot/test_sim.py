@@ -1,0 +1,353 @@
+"""Specs on the reference robot: lockstep simulation, conformance to the model, replay on the robot.
+
+Oracles: every simulated run is re-taken on the engine's enumerator (each
+agent step must be an enabled step of the run-mode model with the same rule
+and facts); every robot trace must replay on the abstract model the explorer
+checks; the conflict model's livelock counterexample comes from the explorer
+itself.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from roar_formal.clf.context import LIN
+from roar_formal.clf.printer import show
+from roar_formal.clf.terms import Root
+from roar_formal.robot.commands import prepare
+from roar_formal.robot.conform import replay_on_model
+from roar_formal.robot.onrobot import replay_on_robot
+from roar_formal.robot.report import step_records, write_robot_trace
+from roar_formal.robot.robot import Robot
+from roar_formal.robot.sim import simulate
+from roar_formal.roar.compile import compile_spec
+from roar_formal.roar.run import parse_fault
+from roar_formal.trace.format import read_trace
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT / "models"
+SCEN = MODELS / "scenarios"
+DOOR_REQ = "base::arrived == true where base::gx == 9.0 && base::gy == 3.0"
+
+_CACHE: dict = {}
+
+
+def setup(spec: str, request: str, scenario: str):
+    key = (spec, request, scenario)
+    if key not in _CACHE:
+        _CACHE[key] = prepare(MODELS / spec, request, SCEN / scenario)
+    return _CACHE[key]
+
+
+def sim(spec, request, scenario, seed=0, faults=(), **kw):
+    spec_ast, model, binding, sc = setup(spec, request, scenario)
+    return simulate(model, binding.robot, sc, seed=seed, faults=list(faults), **kw)
+
+
+def abstract_model(spec, request, scenario):
+    spec_ast, model, binding, sc = setup(spec, request, scenario)
+    key = ("abstract",) + (spec, request, scenario)
+    if key not in _CACHE:
+        _CACHE[key] = compile_spec(spec_ast, request, registry=binding.abstract, functional="abstract")
+    return _CACHE[key], binding
+
+
+def door(faults=(), seed=0):
+    return sim("door_nav.roar", DOOR_REQ, "door.toml", seed=seed, faults=faults)
+
+
+# ---------------------------------------------------------------- determinism
+
+
+def test_one_seed_gives_one_run_bit_for_bit():
+    a, b = door(("door_closes",), seed=3), door(("door_closes",), seed=3)
+    assert step_records(a) == step_records(b)
+    assert a.robot.trajectory == b.robot.trajectory
+    assert a.robot.world.base.odometry == b.robot.world.base.odometry
+
+
+def test_another_seed_gives_another_odometry():
+    a, b = door(seed=3), door(seed=4)
+    assert a.robot.world.base.odometry != b.robot.world.base.odometry
+    # the noise is small: both still arrive
+    assert a.ok and b.ok
+
+
+def test_a_robot_snapshot_continues_bit_for_bit():
+    spec_ast, model, binding, sc = setup("door_nav.roar", DOOR_REQ, "door.toml")
+    r = Robot(sc, seed=2, faults=["door_closes"])
+    r.follow(r.plan_to((9.0, 3.0)))
+    for _ in range(300):
+        r.step()
+    data = r.snapshot()
+    for _ in range(250):
+        r.step()
+    again = Robot.restore(data)
+    for _ in range(250):
+        again.step()
+    assert again.world.base.pose == r.world.base.pose
+    assert again.world.base.odometry == r.world.base.odometry
+    assert again.trajectory == r.trajectory and again.follow_state == r.follow_state
+
+
+# ---------------------------------------------------------------- the door scenario
+
+
+def _first(events, pred, after=0):
+    for k, e in enumerate(events):
+        if k >= after and pred(e):
+            return k
+    return None
+
+
+def test_door_closes_the_planner_fails_the_base_pauses_and_resumes_and_arrives():
+    res = door(("door_closes",))
+    evs = res.events
+    t = lambda e: res.times[e.step - 1]
+    tf = _first(evs, lambda e: e.kind == "state" and e.agent == "planner" and e.data.get("to") == "temporary failure")
+    assert tf is not None and t(evs[tf]) >= 4.0          # not before the door closes
+    paused = _first(evs, lambda e: e.kind == "pause" and e.agent == "base", tf)
+    resumed = _first(evs, lambda e: e.kind == "resume" and e.agent == "base", paused)
+    assert paused is not None and resumed is not None and tf <= paused < resumed
+    # while the door is closed the planner finds no path; once it opens it does
+    no_path = [c for c in res.calls if c.function == "planner::compute_path" and c.outcome == "no_path"]
+    assert no_path and all(4.0 <= c.t_end <= 14.5 for c in no_path)
+    last_plan = max(c.t_end for c in res.calls if c.function == "planner::compute_path" and c.outcome == "planned")
+    assert last_plan >= 14.0
+    assert res.ok and res.end == "quiescent"
+    x, y, _ = res.robot.world.base.pose
+    assert math.hypot(x - 9.0, y - 3.0) < 0.25
+    # the base waited in front of the door: it never crossed it while closed
+    assert all(px < 6.0 for t_, px, _py, _th in res.robot.trajectory if 4.5 <= t_ <= 14.0)
+
+
+def test_door_that_stays_closed_never_lets_the_robot_arrive():
+    res = door(("door_stays_closed",))
+    assert not res.ok and res.outcome == "running" and res.end == "horizon"
+    assert res.robot.time == pytest.approx(res.robot.horizon, abs=0.02)
+    assert max(px for _t, px, _py, _th in res.robot.trajectory) < 6.0
+
+
+def test_slip_makes_the_odometry_over_read():
+    req = "base::arrived == true where base::gx == 8.0 && base::gy == 1.0"
+    dry = sim("door_nav.roar", req, "slip.toml")
+    wet = sim("door_nav.roar", req, "slip.toml", faults=["slip"])
+    assert dry.ok and wet.ok            # both believe they arrived
+    xd, xw = dry.robot.world.base.pose[0], wet.robot.world.base.pose[0]
+    assert xd > 7.75 and xw < xd - 0.2  # on the spill the wheels spun: the robot stopped short
+    assert wet.robot.world.base.odometry[0] > xw + 0.2
+
+
+def test_lidar_dropout_makes_mana_nav_take_its_fallback_recipe():
+    req = "locomotion::arrived == true where locomotion::gx == 3.0 && locomotion::gy == 4.0"
+    ok = sim("mana_nav.roar", req, "lidar_dropout.toml")
+    out = sim("mana_nav.roar", req, "lidar_dropout.toml", faults=["lidar_dropout"])
+    recipes = lambda r: [e.data["recipe"] for e in r.events if e.kind == "recipe"]
+    assert "on_map" in recipes(ok) and "straight_line" not in recipes(ok)
+    assert "straight_line" in recipes(out)
+    assert ok.ok and out.ok
+    for r in (ok, out):
+        x, y, _ = r.robot.world.base.pose
+        assert math.hypot(x - 3.0, y - 4.0) < 0.2
+
+
+def test_the_cup_slips_out_of_a_weak_grip_and_the_mission_starts_again():
+    good = sim("pick_place.roar", "carrier::delivered == true", "gripper.toml")
+    weak = sim("pick_place.roar", "carrier::delivered == true", "gripper.toml", faults=["weak_grip"])
+    assert good.ok and good.robot.world.gripper.holding is None   # put down on the table
+    cup = good.robot.world.objects["cup"].position
+    assert math.hypot(cup[0] - 6.5, cup[1] - 3.75) < 0.6
+    assert not weak.ok
+    checks = [c for c in weak.calls if c.function == "gripper::has_object"]
+    assert checks and all(c.outcome == "no" for c in checks)
+    assert weak.robot.world.gripper.drops >= 1
+
+
+def test_a_loop_that_takes_no_time_is_stopped_and_said():
+    res = sim("pick_place.roar", "carrier::delivered == true", "gripper.toml",
+              prim_faults=[parse_fault("go_to")])
+    assert res.end == "zero-time loop" and not res.ok
+    assert res.robot.time < 0.01
+
+
+# ---------------------------------------------------------------- the runs are engine runs
+
+
+_FRESH = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")
+
+
+def _lines(facts):
+    return [show(f) for _m, f in facts if type(f) is Root]
+
+
+def _rename(want: list, got: list, ren: dict):
+    """Do the printed facts ``want`` (the simulation's) equal ``got`` (the enumerator's) up to a
+    consistent renaming of fresh names? The extended renaming, or None."""
+    if len(want) != len(got):
+        return None
+    shape = lambda t: _FRESH.sub("#", t)
+    ren = dict(ren)
+    images = set(ren.values())
+    # pair facts of one shape by the names already paired; new names sort last on both sides
+    w_key = lambda t: _FRESH.sub(lambda m: ren.get(m.group(0), "~"), t)
+    g_key = lambda t: _FRESH.sub(lambda m: m.group(0) if m.group(0) in images else "~", t)
+    ws = sorted(want, key=lambda t: (shape(t), w_key(t)))
+    gs = sorted(got, key=lambda t: (shape(t), g_key(t)))
+    for w, g in zip(ws, gs):
+        if shape(w) != shape(g):
+            return None
+        for a, b in zip(_FRESH.findall(w), _FRESH.findall(g)):
+            if ren.setdefault(a, b) != b:
+                return None
+    return ren
+
+
+def test_every_agent_step_of_a_simulation_is_an_enabled_step_of_the_model():
+    """Independent driver: re-take the run on the enumerator (Program.steps / successor), the
+    functional layer's answers and the poll sleeps applied as the context edits they are."""
+    from roar_formal.clf.terms import const
+    res = door(("door_closes",), seed=1)
+    prog = res.run.model.program()
+    start = next(d for d in prog.sig.directives if hasattr(d, "start"))
+    state = prog.start_context(start.start)
+    ren: dict = {}
+    asleep: dict = {}
+
+    def find(text):
+        text = _FRESH.sub(lambda m: ren.get(m.group(0), m.group(0)), text)
+        return next(f for _m, f, _n in state.facts() if type(f) is Root and show(f) == text)
+
+    for k, step in enumerate(res.run.steps.raw):
+        if step.rule in ("functional_layer", "poll_sleep", "poll_wake"):
+            nxt = state.copy()
+            if step.rule == "functional_layer":
+                pend = find(show(step.consumed[0][1]))
+                nxt.remove_fact(pend, LIN)
+                ans = step.produced[0][1]
+                nxt.add_fact(const("return", ans.args[0], pend.args[2]) if ans.head.name == "return"
+                             else const("callfail", pend.args[2]), LIN)
+            elif step.rule == "poll_sleep":
+                ctl = find(show(step.consumed[0][1]))
+                asleep[show(step.consumed[0][1])] = ctl
+                nxt.remove_fact(ctl, LIN)
+            else:
+                nxt.add_fact(asleep.pop(show(step.produced[0][1])), LIN)
+            state = nxt
+            continue
+        want_c, want_p = _lines(step.consumed), _lines(step.produced)
+        for choice in prog.steps(state):
+            if choice.rule != step.rule:
+                continue
+            nxt, got = prog.successor(state, choice)
+            r = _rename(want_c, _lines(got.consumed), ren)
+            r = r if r is None else _rename(want_p, _lines(got.produced), r)
+            if r is not None:
+                ren, state = r, nxt
+                break
+        else:
+            pytest.fail(f"step {k + 1} ({step.rule}) is not an enabled step of the model")
+    assert not asleep
+
+
+# ---------------------------------------------------------------- conformance
+
+
+RUNS = [
+    ("door_nav.roar", DOOR_REQ, "door.toml", ()),
+    ("door_nav.roar", DOOR_REQ, "door.toml", ("door_closes",)),
+    ("door_nav.roar", "base::arrived == true where base::gx == 8.0 && base::gy == 1.0", "slip.toml", ("slip",)),
+    ("mana_nav.roar", "locomotion::arrived == true where locomotion::gx == 3.0 && locomotion::gy == 4.0",
+     "clear.toml", ()),
+    ("mana_nav.roar", "locomotion::arrived == true where locomotion::gx == 3.0 && locomotion::gy == 4.0",
+     "lidar_dropout.toml", ("lidar_dropout",)),
+    ("conflict.roar", "mission::done == true", "ptu_cable.toml", ()),
+    ("spa_loop.roar", "exec::arrived == true where exec::goal == 7", "slip.toml", ()),
+    ("pick_place.roar", "carrier::delivered == true", "gripper.toml", ()),
+]
+
+
+@pytest.mark.parametrize("spec,request_,scenario,faults", RUNS,
+                         ids=[f"{s.split('.')[0]}-{sc.split('.')[0]}{'-' + '-'.join(f) if f else ''}"
+                              for s, _r, sc, f in RUNS])
+def test_every_scenario_run_is_covered_and_replays_on_the_abstract_model(tmp_path, spec, request_, scenario,
+                                                                         faults):
+    res = sim(spec, request_, scenario, faults=faults)
+    assert res.end in ("quiescent", "horizon")
+    assert res.calls and not res.uncovered(), [c.as_json() for c in res.uncovered()]
+    # through the trace file: what a user would replay
+    path = tmp_path / "run.jsonl"
+    write_robot_trace(path, res, spec, request_, scenario)
+    header, steps = read_trace(path)
+    assert header["kind"] == "roar-robot-run" and header["scenario_fingerprint"]
+    model, binding = abstract_model(spec, request_, scenario)
+    rp = replay_on_model(model, binding.robot, steps)
+    assert rp.ok, rp.divergence.lines()
+    assert len(rp.outcomes) == len(res.calls)
+
+
+def _door_trace(tmp_path):
+    res = door(("door_closes",))
+    path = tmp_path / "door.jsonl"
+    write_robot_trace(path, res, "door_nav.roar", DOOR_REQ, "door.toml")
+    return res, path
+
+
+def _rewrite(path, steps, header, out):
+    lines = [json.dumps(header)] + [json.dumps(s) for s in steps]
+    out.write_text("\n".join(lines) + "\n")
+
+
+def test_a_result_no_outcome_covers_is_rejected_at_its_step(tmp_path):
+    res, path = _door_trace(tmp_path)
+    header, steps = read_trace(path)
+    k = next(i for i, s in enumerate(steps) if s.get("call", {}).get("function") == "base::at_goal")
+    steps[k]["call"]["result"]["value"] = "banana"
+    model, binding = abstract_model("door_nav.roar", DOOR_REQ, "door.toml")
+    rp = replay_on_model(model, binding.robot, steps)
+    assert not rp.ok and rp.divergence.step == steps[k]["step"]
+    assert "covered by no declared outcome" in rp.divergence.reason
+    assert any("banana" in line for line in rp.divergence.robot)
+
+
+def test_a_robot_step_the_model_does_not_allow_is_rejected_with_both_sides(tmp_path):
+    res, path = _door_trace(tmp_path)
+    header, steps = read_trace(path)
+    # the lidar says the path is blocked, but the recorded run goes on polling as if it were clear
+    k = next(i for i, s in enumerate(steps) if s.get("call", {}).get("function") == "planner::path_blocked"
+             and s["call"]["result"]["value"] is False)
+    steps[k]["call"]["result"]["value"] = True
+    model, binding = abstract_model("door_nav.roar", DOOR_REQ, "door.toml")
+    rp = replay_on_model(model, binding.robot, steps)
+    assert not rp.ok and rp.divergence.step > steps[k]["step"]
+    assert "cannot take this rule" in rp.divergence.reason
+    assert rp.divergence.robot and any("enabled here" in x for x in rp.divergence.model)
+
+
+# ---------------------------------------------------------------- a counterexample on the robot
+
+
+def test_the_conflict_livelock_happens_on_the_robot_only_with_the_cable(tmp_path):
+    from roar_formal.explore.check import run_job, save_counterexample
+    from roar_formal.explore.jobs import load_job
+
+    res = run_job(load_job(ROOT / "checker" / "conflict.toml"))
+    assert res.verdicts["livelock"].status == "violated"
+    trace = save_counterexample(res, "livelock", tmp_path)
+    _header, records = read_trace(trace)
+    assert any(r.get("loop") for r in records)
+    spec_ast, model, binding, sc = setup("conflict.roar", "mission::done == true", "ptu_cable.toml")
+    with_cable = replay_on_robot(model, binding.robot, sc, records, faults=["cable"], loops=3)
+    assert with_cable.realised, with_cable.lines[-5:]
+    assert with_cable.steps == with_cable.total
+    ptu = with_cable.robot.world.ptu
+    assert ptu.angle_deg < 25.0          # stopped by the cable short of the 30 degrees asked for
+    blocked = [c for c in with_cable.calls if c.outcome == "blocked"]
+    assert len(blocked) >= 3
+    free = replay_on_robot(model, binding.robot, sc, records, faults=[], loops=3)
+    assert not free.realised
+    assert "blocked" in free.message and "turned" in free.message
