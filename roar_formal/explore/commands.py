@@ -7,6 +7,8 @@ from pathlib import Path
 from typing import List, Optional
 
 import typer
+
+from ..errors import RoarError
 from rich.console import Console
 from rich.live import Live
 from rich.markup import escape
@@ -65,10 +67,32 @@ def register(app: typer.Typer) -> None:
     @app.command("replay")
     def replay_cmd(
         trace: Path = typer.Argument(..., help="A trace written by 'roar-verify check' (JSON Lines)."),
-        model: Optional[Path] = typer.Option(None, "--model", help="The model, if the trace does not name it."),
+        model: Optional[Path] = typer.Option(None, "--model", help="The model, if the trace does not name it; "
+                                             "for a robot trace or --on-robot, the spec."),
         states: bool = typer.Option(False, "--states", help="Print the whole state after every step."),
+        on_robot: Optional[Path] = typer.Option(None, "--on-robot", help="Drive the reference robot of this "
+                                                "scenario through the counterexample (needs --model SPEC)."),
+        seed: int = typer.Option(0, "--seed", help="With --on-robot: the robot's seed."),
+        fault: List[str] = typer.Option([], "--fault", help="With --on-robot: a fault point of the scenario."),
+        loops: int = typer.Option(3, "--loops", help="With --on-robot: how many times to drive a lasso's cycle."),
+        png: Optional[Path] = typer.Option(None, "--png", help="With --on-robot: draw the robot's run here."),
+        functional: Optional[Path] = typer.Option(None, "--functional", help="The spec's functional-layer module."),
+        force: bool = typer.Option(False, "--force", help="Replay a robot trace made from other sources."),
     ) -> None:
-        """Step through a trace on the engine, checking that every step is enabled."""
+        """Step through a trace on the engine, checking that every step is enabled.
+
+        A robot trace (from `simulate --trace`) replays on the compiled model of the spec given with
+        --model; a counterexample replays on the robot with --on-robot SCENARIO --model SPEC.
+        """
+        from ..trace.format import read_trace
+        if on_robot is not None or read_trace(trace)[0].get("kind") == "roar-robot-run":
+            from ..robot.commands import replay_robot
+            if loops < 1 or loops > 1000:
+                raise RoarError(f"--loops {loops}: expected 1 to 1000")
+            code = replay_robot(trace, model, on_robot, seed, fault, loops, png, functional, force)
+            if code:
+                raise typer.Exit(code)
+            return
         from ..clf.query import show_context, with_big_stack
         from ..trace.replay import replay
 

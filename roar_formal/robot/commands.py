@@ -18,21 +18,28 @@ def _console():
     return Console(highlight=False, emoji=False)
 
 
-def split_faults(names: list[str], scenario) -> tuple[list[str], list]:
+def split_faults(names: list[str], scenario, model=None) -> tuple[list[str], list]:
     """``--fault`` values: scenario fault points (``door_closes``) and primitive faults (``compute_path:1``)."""
     from ..roar.run import parse_fault
     world, prims = [], []
     known = set(scenario.fault_names())
+    functions = set()
+    if model is not None:
+        for owner, name in model.functions.values():
+            functions |= {name, f"{owner}::{name}"} if owner else {name}
     for n in names:
         if n in known:
             world.append(n)
-        else:
-            try:
-                prims.append(parse_fault(n))
-            except RoarError:
-                raise RoarError(f"--fault {n!r}: not a fault point of scenario '{scenario.name}' "
-                                f"({', '.join(sorted(known)) or 'it has none'}) nor a primitive fault "
-                                f"(NAME, NAME:K or NAME=OUTCOME)") from None
+            continue
+        try:
+            f = parse_fault(n)
+        except RoarError:
+            f = None
+        if f is None or (model is not None and f.name not in functions):
+            raise RoarError(f"--fault {n!r}: not a fault point of scenario '{scenario.name}' "
+                            f"({', '.join(sorted(known)) or 'it has none'}) nor a primitive fault "
+                            f"(NAME, NAME:K or NAME=OUTCOME, NAME a function the spec calls)")
+        prims.append(f)
     return world, prims
 
 
@@ -81,7 +88,7 @@ def register(app: typer.Typer) -> None:
         from .sim import simulate
 
         spec_ast, model, binding, sc = prepare(spec, request, scenario, functional)
-        world_faults, prim_faults = split_faults(fault, sc)
+        world_faults, prim_faults = split_faults(fault, sc, model)
         for p in (trace, png):
             _check_output(p, spec_ast, spec, scenario)
         console = _console()
@@ -157,7 +164,7 @@ def register(app: typer.Typer) -> None:
         if runs < 1 or runs > 10_000:
             raise RoarError(f"--runs {runs}: expected a number of runs from 1 to 10000")
         spec_ast, model, binding, sc = prepare(spec, request, scenario, functional)
-        world_faults, prim_faults = split_faults(fault, sc)
+        world_faults, prim_faults = split_faults(fault, sc, model)
         if prim_faults:
             raise RoarError("conform draws the scenario's fault points; primitive faults "
                             f"({', '.join(map(str, prim_faults))}) are not allowed here")
@@ -184,7 +191,8 @@ def _check_output(path: Optional[Path], spec_ast, spec: Path, scenario: Path) ->
     if path is None:
         return
     p = Path(path)
-    inputs = {Path(f).resolve() for f in spec_files(spec_ast)} | {Path(scenario).resolve(), Path(spec).resolve()}
+    inputs = ({Path(f).resolve() for f in spec_files(spec_ast)} if spec_ast is not None else set()) \
+        | {Path(scenario).resolve(), Path(spec).resolve()}
     if p.exists() and p.resolve() in inputs:
         raise RoarError(f"{p}: refusing to overwrite an input file")
     if p.exists() and p.is_dir():
@@ -199,3 +207,74 @@ def _writing(path: Path, write) -> None:
         write()
     except OSError as exc:
         raise RoarError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], seed: int, fault: list[str],
+                 loops: int, png: Optional[Path], functional: Optional[Path], force: bool) -> int:
+    """``roar-verify replay`` for robot traces (``--model SPEC``) and for counterexamples on the robot
+    (``--on-robot SCENARIO``). Returns the exit status. Only the spec named on the command line is
+    compiled and only its functional-layer module is imported: nothing the trace names is run."""
+    from rich.text import Text
+    from ..roar.compile import compile_spec
+    from ..trace.format import read_trace
+    from .report import TRACE_KIND, sources_fingerprint
+
+    header, records = read_trace(trace)
+    console = _console()
+    if model is None:
+        named = header.get("spec")
+        raise RoarError(f"{trace}: pass the spec to replay it on: --model SPEC"
+                        + (f" (the trace was made from {named}; it is not opened from the trace)" if named else ""))
+    request = header.get("request")
+    if not isinstance(request, str) or not request:
+        raise RoarError(f"{trace}: the trace header records no request: is it a trace of a ROAR spec?")
+    if on_robot is not None:
+        _check_output(png, None, model, on_robot)
+        from .onrobot import replay_on_robot
+        spec_ast, compiled, binding, sc = prepare(model, request, on_robot, functional)
+        world_faults, prims = split_faults(fault, sc, compiled)
+        if prims:
+            raise RoarError("replay --on-robot takes the scenario's fault points only; the counterexample "
+                            "already says how each primitive call ends")
+        if any(r.get("rule") == "functional_layer" for r in records) and header.get("kind") == TRACE_KIND:
+            raise RoarError(f"{trace}: a robot trace, not a counterexample: replay it on the model with --model "
+                            f"alone")
+        console.print(Text(f"{trace}: {len(records)} steps of {header.get('kind', 'a trace')} for request "
+                           f"{request}, on scenario {sc.name}" + (f" with {', '.join(world_faults)}" if world_faults
+                                                                  else "")), soft_wrap=True)
+        res = replay_on_robot(compiled, binding.robot, sc, records, seed=seed, faults=world_faults, loops=loops,
+                              on_line=lambda line: console.print(Text(line), soft_wrap=True))
+        console.print(Text(res.message, style="green" if res.realised else "red"), soft_wrap=True)
+        x, y, th = res.pose
+        console.print(Text(f"robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}° at "
+                           f"t = {res.time:.2f} s"))
+        if png is not None:
+            from .report import draw_robot
+            draw_robot(png, res.robot, title=f"{sc.name}: counterexample "
+                       f"{'realised' if res.realised else 'not realised'} (t = {res.time:.1f} s)",
+                       marks=[] if res.realised else [(x, y, "diverges here")])
+            console.print(Text(f"picture written to {png}"))
+        return 0 if res.realised else 1
+    if header.get("kind") != TRACE_KIND:
+        raise RoarError(f"{trace}: not a robot trace (kind {header.get('kind')!r}); a counterexample replays on the "
+                        f"engine without --model SPEC, or on the robot with --on-robot SCENARIO")
+    from ..roar.parser import load_spec
+    from .binding import load_robot_binding
+    from .conform import replay_on_model
+    spec_ast = load_spec(model)
+    mine = sources_fingerprint(spec_files(spec_ast))
+    theirs = header.get("spec_fingerprint")
+    if theirs and theirs != mine and not force:
+        raise RoarError(f"{trace}: the trace was made from other sources than {model} (its fingerprint differs): "
+                        f"it is stale; simulate again, or pass --force to replay it anyway")
+    binding = load_robot_binding(model, functional)
+    abstract = compile_spec(spec_ast, request, registry=binding.abstract or binding.robot, functional="abstract")
+    rp = replay_on_model(abstract, binding.robot, records)
+    if rp.ok:
+        console.print(Text(f"replayed {rp.steps} robot steps on the model of {model}: every step is a step of the "
+                           f"model, and each of the {len(rp.outcomes)} functional-layer answers falls into a "
+                           f"declared outcome", style="green"), soft_wrap=True)
+        return 0
+    for line in rp.divergence.lines():
+        console.print(Text(line, style="red" if line.startswith("step") else ""), soft_wrap=True)
+    return 1

@@ -75,7 +75,7 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
             on_line(text)
 
     def done(realised: bool, n: int, msg: str) -> OnRobot:
-        say(msg)
+        lines.append(msg)
         return OnRobot(realised, n, len(order), robot.time, tuple(robot.world.base.pose), msg, lines, robot, calls)
 
     def advance(until: Optional[float] = None, dest=None) -> None:

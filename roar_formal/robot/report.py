@@ -25,15 +25,10 @@ TRACE_KIND = "roar-robot-run"
 
 
 def sources_fingerprint(files) -> str:
-    """sha256 over the named files' contents (sorted by path): a trace of other sources is stale."""
-    h = hashlib.sha256()
-    for f in sorted(str(Path(x)) for x in files):
-        p = Path(f)
-        h.update(f.encode() + b"\0")
-        if p.is_file():
-            h.update(p.read_bytes())
-        h.update(b"\0")
-    return h.hexdigest()
+    """sha256 over the contents of the spec's files (where they live does not matter): a trace
+    made from other sources is stale."""
+    parts = sorted(hashlib.sha256(Path(f).read_bytes()).hexdigest() for f in files if Path(f).is_file())
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()
 
 
 def _r(x: float, k: int = 4) -> float:
@@ -97,6 +92,9 @@ def draw_sim(path_png, res: SimResult, title: Optional[str] = None, marks=()) ->
     """The scenario, the map the robot knew, the planned paths, the driven trajectory and the events."""
     from .draw import draw_run
     robot = res.robot
+    if robot.world.ptu is not None and robot.pan and not robot.plans:
+        draw_robot(path_png, robot, title or f"{robot.scenario.name}: request {res.outcome} at t={robot.time:.1f}s")
+        return
     events = []
     for e in res.events:
         if e.kind in ("state", "pause", "resume") or (e.kind == "primitive-end" and "fail" in e.text):
@@ -114,6 +112,22 @@ def draw_sim(path_png, res: SimResult, title: Optional[str] = None, marks=()) ->
     draw_run(path_png, robot.world.geometry(), grid=robot.picture_grid(), planned=planned,
              driven=robot.trajectory, events=events, marks=marks,
              title=title or f"{robot.scenario.name}: request {res.outcome} at t={robot.time:.1f}s")
+
+
+def draw_robot(path_png, robot, title: str, marks=()) -> None:
+    """A robot's run without the agents' events: the pan angle over time when the scenario is about
+    the pan unit (it does not drive), else the map and the driven trajectory."""
+    from .draw import draw_ptu, draw_run
+    if robot.world.ptu is not None and robot.pan and not robot.plans:
+        ptu = robot.scenario.ptu
+        cable = [robot.scenario.faults[f].max_deg for f in robot.world.faults
+                 if robot.scenario.faults[f].kind == "ptu_cable"]
+        limits = (-cable[0], cable[0]) if cable else (ptu.min_deg, ptu.max_deg)
+        draw_ptu(path_png, [p[0] for p in robot.pan], [p[1] for p in robot.pan], [p[2] for p in robot.pan],
+                 limits=limits, title=title)
+        return
+    draw_run(path_png, robot.world.geometry(), grid=robot.picture_grid(), driven=robot.trajectory, marks=marks,
+             title=title)
 
 
 def pose_text(pose) -> str:

@@ -74,6 +74,7 @@ class Robot:
         self._points: Optional[list] = None         # the latest scan as world points (cached)
         self._ahead: Optional[bool] = None          # does it show an obstacle on the path ahead (cached)
         self.trajectory: list = []
+        self.pan: list = []                         # (time, angle, target) of the pan unit, when there is one
         self._next_sample = 0.0
         self.memo: dict = {}                        # what a binding remembers between calls (snapshotted)
         self._sample()
@@ -130,6 +131,9 @@ class Robot:
     def _sample(self) -> None:
         x, y, th = self.world.base.pose
         self.trajectory.append((round(self.time, 4), x, y, th))
+        ptu = self.world.ptu
+        if ptu is not None:
+            self.pan.append((round(self.time, 4), ptu.angle_deg, ptu.target_deg))
         self._next_sample = self.time + SAMPLE_PERIOD
 
     # ------------------------------------------------------------------ snapshots

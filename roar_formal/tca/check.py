@@ -31,6 +31,7 @@ from typing import Any, Callable, Iterable, Iterator, Optional
 import z3
 
 from .axioms import BY_NAME as AXIOMS
+from .difference import DifferenceSystem, NotDifference, atoms as difference_atoms
 from .evaluate import LATE, UNKNOWN, compile_formula, compile_residual
 from .explain import describe, false_atoms, show_value
 from .tasktree import Message, Problem, TaskTree, build_tree
@@ -300,32 +301,56 @@ class _Checker:
         return Violation("seq_ach", "theorem seq_ach_subtrees", msgs, why, tuple(dict.fromkeys(lines)))
 
     def solve(self) -> None:
-        """Decide the instances that depend on unobserved values; one violation per core."""
+        """Decide the instances that depend on unobserved values; one violation per conflict.
+
+        The open constraints are difference constraints (difference.py): a negative cycle of
+        their graph is a minimal conflict, found in time and memory about linear in the
+        trace. Anything outside that fragment goes to Z3 with core minimisation."""
         if not self.pending:
             return
+        labels: dict[str, tuple[str, Callable[[], str], tuple[str, ...]]] = {}  # label -> (rule, text, messages)
+        constraints: list[tuple[str, Any]] = []
+        for i, (c, values, constraint) in enumerate(self.pending):
+            msgs = tuple(dict.fromkeys(x for x in values if isinstance(x, str)))
+            labels[f"i{i}"] = (c.name, describe(c.name, values, constraint), msgs)
+            constraints.append((f"i{i}", constraint))
+        for key, m in self.interp.late.items():
+            text = f"{key} lies after the trace's last time {show_value(self.tree.horizon)}"
+            labels[f"late:{key}"] = ("late", lambda text=text: text, (m,))
+            constraints.append((f"late:{key}", self.interp.unknowns[key] > z3.RealVal(str(self.tree.horizon))))
+        try:
+            system = DifferenceSystem()
+            for label, constraint in constraints:
+                system.add(label, difference_atoms(constraint))
+        except NotDifference:
+            return self._solve_with_z3(constraints, labels)
+        for _ in range(MAX_CORES):
+            core = system.conflict()
+            if core is None:
+                return
+            self._report_core([labels[k] for k in sorted(core)])
+            system.drop(self._to_drop(core, labels))
+
+    @staticmethod
+    def _to_drop(core, labels) -> str:
+        """Which instance of a conflict to set aside before looking for the next: a declaration if any."""
+        return next((k for k in sorted(core) if labels[k][0] in ("d_seq_ach", "d_delay_planning", "a5_precedes")),
+                    min(core))
+
+    def _solve_with_z3(self, constraints, labels) -> None:
         s = z3.Solver()
         s.set("core.minimize", True)
-        labels: dict[str, tuple[str, Callable[[], str], tuple[str, ...]]] = {}  # label -> (rule, text, messages)
         active = []
-        for i, (c, values, constraint) in enumerate(self.pending):
-            label = z3.Bool(f"i{i}")
-            s.add(z3.Implies(label, constraint))
-            msgs = tuple(dict.fromkeys(x for x in values if isinstance(x, str)))
-            labels[str(label)] = (c.name, describe(c.name, values, constraint), msgs)
-            active.append(label)
-        for key, m in self.interp.late.items():
-            label = z3.Bool(f"late:{key}")
-            s.add(z3.Implies(label, self.interp.unknowns[key] > z3.RealVal(str(self.tree.horizon))))
-            text = f"{key} lies after the trace's last time {show_value(self.tree.horizon)}"
-            labels[str(label)] = ("late", lambda text=text: text, (m,))
-            active.append(label)
+        for label, constraint in constraints:
+            b = z3.Bool(label)
+            s.add(z3.Implies(b, constraint))
+            active.append(b)
         for _ in range(MAX_CORES):
             if s.check(*active) != z3.unsat:
                 return
             core = {str(x) for x in s.unsat_core()}
             self._report_core([labels[k] for k in sorted(core)])
-            drop = next((k for k in core if labels[k][0] in ("d_seq_ach", "d_delay_planning", "a5_precedes")),
-                        min(core))
+            drop = self._to_drop(core, labels)
             active = [a for a in active if str(a) != drop]
 
     def _report_core(self, parts: list[tuple[str, str, tuple[str, ...]]]) -> None:

@@ -101,10 +101,42 @@ class _Record:
                 raise self.fail(f"expected field {key!r} to be a number, got {json.dumps(value, default=str)}", key)
             if key == "step" and not isinstance(value, int):
                 raise self.fail(f"expected field 'step' to be an integer, got {value}", key)
+            if not _reasonable(value):
+                shown = str(value) if len(str(value)) <= 40 else str(value)[:37] + "..."
+                raise self.fail(f"expected field {key!r} to be a number below 10^{MAX_MAGNITUDE} in magnitude "
+                                f"with at most {MAX_PLACES} decimal places, got {shown}", key)
             return Fraction(value)
         if required:
             raise self.fail(f"expected a number field 'time' (or 'step') in a {self.data['event']!r} record")
         return None
+
+
+#: times and steps: below 10**MAX_MAGNITUDE in magnitude (nanoseconds since 1970 fit), at most
+#: MAX_PLACES decimal places. Larger exponents are refused before any arithmetic: the exact
+#: rational of ``1e999999999`` alone would take minutes and hundreds of megabytes.
+MAX_MAGNITUDE = 20
+MAX_PLACES = 30
+
+
+def _reasonable(value: Union[int, Decimal]) -> bool:
+    if isinstance(value, int):
+        return abs(value) < 10 ** MAX_MAGNITUDE
+    if not value.is_finite():
+        return False
+    if value.is_zero():
+        return True
+    if value.adjusted() >= MAX_MAGNITUDE:
+        return False
+    if value.as_tuple().exponent >= -MAX_PLACES:
+        return True
+    # trailing zeros do not count as places (0.50000...0)
+    return len(value.as_tuple().digits) <= 4 * MAX_PLACES and value.normalize().as_tuple().exponent >= -MAX_PLACES
+
+
+def _bounded_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_MAGNITUDE + 20:
+        raise ValueError(f"an integer of {len(text)} digits is not a number a trace may hold")
+    return int(text)
 
 
 def _no_constants(name: str):
@@ -113,7 +145,7 @@ def _no_constants(name: str):
 
 def _parse(text: str, file: str, line: int) -> Optional[dict]:
     try:
-        data = json.loads(text, parse_float=Decimal, parse_constant=_no_constants)
+        data = json.loads(text, parse_float=Decimal, parse_int=_bounded_int, parse_constant=_no_constants)
     except json.JSONDecodeError as exc:
         raise RoarError(f"malformed JSON: {exc.msg}; expected one JSON object per line", Pos(file, line, exc.colno))
     except ValueError as exc:

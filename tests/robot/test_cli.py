@@ -1,0 +1,136 @@
+"""``roar-verify simulate``, ``conform`` and ``replay`` on robot traces, through the CLI entry point.
+
+Exit codes (0 success / sound / realised, 1 not, 2 bad input with a location, never a
+traceback), the printed run against the library's result, the trace and picture files.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from roar_formal.cli import main
+from roar_formal.robot.commands import prepare
+from roar_formal.robot.sim import simulate
+from roar_formal.trace.format import read_trace
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT / "models"
+SCEN = MODELS / "scenarios"
+DOOR = MODELS / "door_nav.roar"
+DOOR_REQ = "base::arrived == true where base::gx == 9.0 && base::gy == 3.0"
+REQ_RETRY = "hand::holding == true"
+LINE = re.compile(r"^ *(\d+) +(\d+\.\d\d)s (\S+) +(.*?)(   @ \(.*\))?$")
+
+
+@pytest.fixture(autouse=True)
+def _plain_console(monkeypatch):
+    for var in ("FORCE_COLOR", "TTY_COMPATIBLE", "TTY_INTERACTIVE", "ROAR_DEBUG"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("COLUMNS", "400")
+    monkeypatch.setenv("NO_COLOR", "1")
+
+
+def cli(capsys, *argv) -> tuple[int, str, str]:
+    code = 0
+    try:
+        main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_simulate_prints_the_run_writes_its_trace_and_picture(capsys, tmp_path):
+    trace, png = tmp_path / "door.jsonl", tmp_path / "door.png"
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ,
+                         "--fault", "door_closes", "--trace", trace, "--png", png)
+    assert code == 0, err
+    assert "Traceback" not in out + err
+    assert re.search(r"^request success at t = 23\.\d\d s after \d+ CLF steps \(quiescent\)", out, re.M)
+    # the printed events are the library's, with their simulated times
+    spec_ast, model, binding, sc = prepare(DOOR, DOOR_REQ, SCEN / "door.toml")
+    res = simulate(model, binding.robot, sc, seed=0, faults=["door_closes"])
+    printed = [(int(m.group(1)), float(m.group(2)), m.group(3), m.group(4)) for m in map(LINE.match, out.splitlines())
+               if m]
+    assert printed == [(e.step, round(res.times[e.step - 1], 2), e.agent, e.text) for e in res.events]
+    header, steps = read_trace(trace)
+    assert header["kind"] == "roar-robot-run" and header["faults"] == ["door_closes"]
+    assert header["outcome"] == "success" and len(steps) == len(res.run.steps)
+    assert all("time" in s and "pose" in s for s in steps)
+    calls = [s["call"] for s in steps if s["rule"] == "functional_layer"]
+    assert len(calls) == len(res.calls) and all(c["outcome"] for c in calls)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_simulate_exits_1_when_the_request_does_not_finish(capsys):
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ,
+                         "--fault", "door_stays_closed")
+    assert code == 1
+    assert "request running at t = 90.00 s" in out and "horizon of 90 s reached" in out
+
+
+def test_simulate_refuses_bad_input_with_a_location(capsys, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\nbounds = [0.0, 0.0, 5.0]\n')
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", bad, "-r", DOOR_REQ)
+    assert code == 2 and f"{bad}:2:" in err and "Traceback" not in err
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--fault", "door_open")
+    assert code == 2 and "not a fault point of scenario 'door'" in err and "door_closes" in err
+    # a spec without a functional-layer module, and one whose module has no robot binding
+    code, out, err = cli(capsys, "simulate", MODELS / "faulty" / "mutual_make.roar", "-s", SCEN / "clear.toml",
+                         "-r", "a::x == true")
+    assert code == 2 and "no functional-layer module found" in err and "Traceback" not in err
+    code, out, err = cli(capsys, "simulate", MODELS / "faulty" / "retry_forever.roar", "-s", SCEN / "clear.toml",
+                         "-r", REQ_RETRY, "--functional", MODELS / "faulty" / "reliable_tools.py")
+    assert code == 2 and "defines no robot_registry()" in err and "Traceback" not in err
+    # an output that would overwrite an input
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--trace", DOOR)
+    assert code == 2 and "refusing to overwrite" in err
+
+
+def test_conform_reports_outcomes_per_primitive_and_exits_0_when_sound(capsys):
+    code, out, err = cli(capsys, "conform", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--runs", "2",
+                         "--fault", "door_closes", "--json")
+    assert code == 0, err
+    rep = json.loads(out)
+    assert rep["sound"] and len(rep["runs"]) == 2
+    assert rep["outcomes"]["planner::compute_path"]["no_path"] > 0      # the door was closed
+    assert rep["outcomes"]["planner::path_blocked"]["blocked"] > 0
+    assert "not_driving" in rep["never"]["base::drive"]                 # a warning, not an error
+
+
+def test_replay_of_a_robot_trace_needs_the_spec_and_refuses_a_stale_one(capsys, tmp_path):
+    trace = tmp_path / "door.jsonl"
+    assert cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--trace", trace)[0] == 0
+    code, out, err = cli(capsys, "replay", trace)
+    assert code == 2 and "--model SPEC" in err
+    code, out, err = cli(capsys, "replay", trace, "--model", DOOR)
+    assert code == 0 and "every step is a step of the model" in out
+    # the same spec with an edit: stale
+    other = tmp_path / "door_nav.roar"
+    other.write_text(DOOR.read_text().replace("wait(at_goal(gx, gy), 100);", "wait(at_goal(gx, gy), 50);"))
+    (tmp_path / "door_nav.py").write_text((MODELS / "door_nav.py").read_text())
+    code, out, err = cli(capsys, "replay", trace, "--model", other)
+    assert code == 2 and "stale" in err
+    code, out, err = cli(capsys, "replay", trace, "--model", other, "--force")
+    assert code == 0
+
+
+def test_replay_of_an_edited_robot_trace_names_the_step(capsys, tmp_path):
+    trace = tmp_path / "door.jsonl"
+    assert cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--trace", trace)[0] == 0
+    lines = trace.read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if '"function": "base::drive"' in line)
+    rec = json.loads(lines[k])
+    rec["call"]["result"]["value"] = 42
+    lines[k] = json.dumps(rec)
+    trace.write_text("\n".join(lines) + "\n")
+    code, out, err = cli(capsys, "replay", trace, "--model", DOOR)
+    assert code == 1
+    assert f"step {rec['step']} (functional_layer): the robot's result of base::drive is covered by no declared " \
+           f"outcome" in out
+    assert "declared outcomes of base::drive: driving, not_driving" in out
