@@ -96,8 +96,10 @@ def draw_sim(path_png, res: SimResult, title: Optional[str] = None, marks=()) ->
         draw_robot(path_png, robot, title or f"{robot.scenario.name}: request {res.outcome} at t={robot.time:.1f}s")
         return
     events = []
-    for e in res.events:
-        if e.kind in ("state", "pause", "resume") or (e.kind == "primitive-end" and "fail" in e.text):
+    seen = set()
+    for e in res.events:   # the first time each state change, pause or resume happens
+        if e.kind in ("state", "pause", "resume") and (e.agent, e.text) not in seen:
+            seen.add((e.agent, e.text))
             x, y, _ = res.poses[e.step - 1]
             events.append((res.times[e.step - 1], x, y, f"{e.agent}: {e.text}"))
     planned = []

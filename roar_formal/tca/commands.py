@@ -132,7 +132,7 @@ def register(app: typer.Typer) -> None:
         report = check_trace(trace)
         tree = report.tree
         console.print(f"{trace}: {len(tree.messages)} messages, {len(tree.declared)} declared constraints, "
-                      f"{report.instances} axiom instances ({report.residual} solved by Z3), "
+                      f"{report.instances} axiom instances ({report.residual} left open, decided by the constraint solver), "
                       f"{report.seconds:.3f} s")
         if report.ok:
             console.print("no violations", style="green")

@@ -134,3 +134,14 @@ def test_replay_of_an_edited_robot_trace_names_the_step(capsys, tmp_path):
     assert f"step {rec['step']} (functional_layer): the robot's result of base::drive is covered by no declared " \
            f"outcome" in out
     assert "declared outcomes of base::drive: driving, not_driving" in out
+
+
+def test_the_door_excerpt_in_the_docs_is_what_simulate_prints(capsys):
+    doc = (ROOT / "docs" / "robot.md").read_text()
+    block = doc.split("An excerpt:\n\n```\n", 1)[1].split("```", 1)[0]
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--fault", "door_closes")
+    assert code == 0
+    printed = set(out.splitlines())
+    shown = [line for line in block.splitlines() if line.strip() and line.strip() != "..."]
+    assert len(shown) > 10
+    assert [line for line in shown if line not in printed] == []
