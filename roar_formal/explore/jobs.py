@@ -9,6 +9,8 @@ expected.
 
 from __future__ import annotations
 
+import json
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -101,6 +103,42 @@ def _typed(d: dict, key: str, ty, path: Path, what: str) -> Any:
               float: "a number", dict: "a table"}.get(ty, str(ty))
         raise RoarError(f"'{key}' in {what} must be {tn}, not {v!r}", Pos(str(path), _line_of(path, key), 1))
     return v
+
+
+#: the smallest memory budget a job may set: the Python process alone takes about this much
+MIN_MEMORY_MB = 16
+#: the largest value any bound may take (beyond it a bound bounds nothing)
+MAX_BOUND = 10 ** 12
+
+
+def _value_pos(path: Path, key: str) -> Pos:
+    """Where ``key = value`` puts its value (line and column), for errors about the value."""
+    line = _line_of(path, key)
+    try:
+        text = path.read_text(encoding="utf-8").splitlines()[line - 1]
+        m = re.match(rf"(\s*{re.escape(key)}\s*=\s*)", text)
+        if m:
+            return Pos(str(path), line, len(m.group(1)) + 1)
+        col = text.find(key)
+        return Pos(str(path), line, col + 1 if col >= 0 else 1)
+    except (OSError, IndexError):
+        return Pos(str(path), line, 1)
+
+
+def _bound(b: dict, key: str, path: Path, expected: str, low: float, integer: bool):
+    """One search bound: a finite number, at least ``low`` (above it when ``low`` is 0)."""
+    if key not in b:
+        return None
+    v = b[key]
+    ok = not isinstance(v, bool) and isinstance(v, int if integer else (int, float))
+    if ok:
+        ok = math.isfinite(v) and (v > 0 if low == 0 else v >= low) and v <= MAX_BOUND
+    if not ok:
+        shown = ("true" if v else "false") if isinstance(v, bool) else json.dumps(v) if isinstance(v, str) \
+            else repr(v) if isinstance(v, (int, float)) else f"a {type(v).__name__}"
+        raise RoarError(f"[bounds] {key} must be {expected} (at most {MAX_BOUND:.0e}), not {shown}",
+                        _value_pos(path, key))
+    return float(v) if not integer else v
 
 
 def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
@@ -211,9 +249,10 @@ def load_job(path: str | Path) -> Job:
         b = _typed(d, "bounds", dict, path, "a job file")
         _expect_keys(b, {"max_states", "max_seconds", "max_memory_mb"}, "[bounds]", path)
         job.budget = Budget(
-            max_states=_typed(b, "max_states", int, path, "[bounds]") if "max_states" in b else None,
-            max_seconds=float(_typed(b, "max_seconds", (int, float), path, "[bounds]")) if "max_seconds" in b else None,
-            max_memory_mb=_typed(b, "max_memory_mb", int, path, "[bounds]") if "max_memory_mb" in b else None,
+            max_states=_bound(b, "max_states", path, "a whole number of states, at least 1", 1, integer=True),
+            max_seconds=_bound(b, "max_seconds", path, "a number of seconds above 0", 0, integer=False),
+            max_memory_mb=_bound(b, "max_memory_mb", path, f"a whole number of MiB, at least {MIN_MEMORY_MB}",
+                                 MIN_MEMORY_MB, integer=True),
         )
     if "expect" in d:
         e = _typed(d, "expect", dict, path, "a job file")

@@ -31,6 +31,8 @@ BLOCKED_WINDOW = 3.0
 SAFETY_DISTANCE = 0.7
 #: a base waiting this long for an obstacle on its path to go away gives up (blocked)
 WAIT_LIMIT = 5.0
+#: the path follower's control loop runs at this period (20 Hz, as on a real base)
+CONTROL_PERIOD = 0.05
 #: trajectory samples for traces and pictures, every this many seconds
 SAMPLE_PERIOD = 0.1
 
@@ -75,6 +77,7 @@ class Robot:
         self._ahead: Optional[bool] = None          # does it show an obstacle on the path ahead (cached)
         self.trajectory: list = []
         self.pan: list = []                         # (time, angle, target) of the pan unit, when there is one
+        self._next_control = 0.0
         self._next_sample = 0.0
         self.memo: dict = {}                        # what a binding remembers between calls (snapshotted)
         self._sample()
@@ -101,7 +104,10 @@ class Robot:
 
     def step(self) -> list[tuple[int, CallResult]]:
         """One physics step with everything the functional layer runs; the activities that ended."""
-        self._control()
+        control = self.time + 1e-9 >= self._next_control
+        if control:
+            self._next_control += CONTROL_PERIOD
+            self._control()
         self.world.step()
         if self.time + 1e-9 >= self._next_scan:
             self._next_scan += self.world.lidar.period
@@ -113,7 +119,8 @@ class Robot:
                 self.last_scan_time = self.time
                 self._points = None
                 self._ahead = None
-        self._watch_follower()
+        if control:
+            self._watch_follower()
         if self.time + 1e-9 >= self._next_sample:
             self._sample()
         done = []
@@ -155,6 +162,7 @@ class Robot:
         self.follower = PurePursuit(self.path, lookahead=0.4, speed=speed, goal_tolerance=0.08)
         self.follow_state = "following"
         self._progress = (self.time, self.follower.remaining(self.world.base.odometry))
+        self._next_control = self.time   # the controller takes the new path at the next step
         return True
 
     def stop(self) -> None:
