@@ -6,15 +6,32 @@ message id such as ``[bold]`` would vanish or raise. Every console of the
 command line comes from :func:`make_console`: emoji substitution, markup and
 highlighting are off. A line of ours that wants style passes ``markup=True``
 and escapes (:func:`rich.markup.escape`) every part that comes from input,
-or builds a :class:`rich.text.Text` (see :func:`styled`).
+or builds a :class:`rich.text.Text` (see :func:`styled`). Control characters in
+printed strings (an escape sequence hidden in a trace or a file name) are
+shown as ``\\x1b``, never sent to the terminal.
 """
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from rich.console import Console
 from rich.text import Text
+
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def visible(text: str) -> str:
+    """``text`` with control characters (other than newline and tab) written as ``\\xNN``."""
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
+
+
+class SafeConsole(Console):
+    """A console whose strings never carry control characters to the terminal."""
+
+    def render_str(self, text: str, **kwargs: Any) -> Text:  # every printed string passes here
+        return super().render_str(visible(text), **kwargs)
 
 
 def make_console(**kwargs: Any) -> Console:
@@ -22,7 +39,7 @@ def make_console(**kwargs: Any) -> Console:
     kwargs.setdefault("highlight", False)
     kwargs.setdefault("markup", False)
     kwargs["emoji"] = False
-    return Console(**kwargs)
+    return SafeConsole(**kwargs)
 
 
 def styled(*parts: Any) -> Text:

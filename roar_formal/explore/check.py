@@ -25,7 +25,7 @@ from ..clf.signature import Elaborator, ExecDirective
 from ..errors import RoarError
 from ..trace.format import write_trace
 from .graph import StateGraph
-from .ground import GroundExplorer, GroundModel, NotGround
+from .ground import GroundExplorer, GroundModel, GroundingStopped, NotGround
 from .jobs import Job
 from .properties import check_states, Verdict, check_deadlock, check_livelock
 from .search import Budget, Explorer, rss_mb
@@ -45,6 +45,7 @@ class JobResult:
     mismatches: list[str] = field(default_factory=list)
     program: Optional[Program] = None
     reduction: str = "off"  # 'on', 'off' or 'not used by the ground backend'
+    fingerprint: Optional[dict] = None  # of the sources explored (trace/fingerprint.py)
 
     @property
     def ok(self) -> bool:
@@ -139,9 +140,13 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
     from ..roar.compile import compile_spec
     from ..roar.explore import PROGRESS_RULES, RoarSystem, roar_final, sequential_pairs
     from ..roar.parser import load_spec
+    from ..trace.fingerprint import spec_fingerprint
     t0 = time.perf_counter()
-    reg = load_registry(functional_module(job.spec, job.functional))
-    model = compile_spec(load_spec(job.spec), job.request, registry=reg, functional="abstract")
+    fn_path = functional_module(job.spec, job.functional)
+    reg = load_registry(fn_path)
+    spec_ast = load_spec(job.spec)
+    fingerprint = spec_fingerprint(job.spec, spec_ast, fn_path)
+    model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract")
     program = model.program()
     start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
     start = program.start_context(start_d.start)
@@ -195,7 +200,7 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
     mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
                   if verdicts[p].status != want]
     res = JobResult(job, verdicts, graph, "general", time.perf_counter() - t0, rss_mb(), mismatches, program,
-                    reduction)
+                    reduction, fingerprint)
     res.roar = (model, start, explorer)
     return res
 
@@ -246,10 +251,12 @@ def _search(job: Job, t0: float, explore, options: Options):
 def _rounds(job: Job, t0: float, explorer, decide):
     limit = job.budget.max_states
     k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
+    graph = verdicts = None
     while True:
         remaining = None
         if job.budget.max_seconds is not None:
             remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
+        graph = verdicts = None  # a restarting backend (ground) gives the last round's memory back first
         graph = explorer.run(Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb))
         verdicts = decide(graph)
         if graph.complete or all(v.violated for v in verdicts.values()):
@@ -267,8 +274,10 @@ def _mark_reduction(job: Job, verdicts: dict, reduction: str) -> None:
 
 
 def _run_job(job: Job, on_progress) -> JobResult:
+    from ..trace.fingerprint import clf_fingerprint
     t0 = time.perf_counter()
     program, start = load_model(job)
+    fingerprint = clf_fingerprint(job.model)
     props = job.props
     options = Options(progress_rules=tuple(props.progress), fairness=props.fairness, canonical=job.canonical)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
@@ -276,13 +285,17 @@ def _run_job(job: Job, on_progress) -> JobResult:
     never = make_never(Path(job.model).read_text(encoding="utf-8"), str(job.model), props.never) \
         if "invariant" in props.check else None
     ground_model = None
+    grounding_stopped = None
     if job.backend in ("auto", "ground") and job.search == "bfs":
+        deadline = t0 + job.budget.max_seconds if job.budget.max_seconds is not None else None
         try:
-            ground_model = GroundModel(program, start, options)
+            ground_model = GroundModel(program, start, options, budget=job.budget, deadline=deadline)
         except NotGround as exc:
             if job.backend == "ground":
                 raise RoarError(f"{job.path}: backend 'ground' cannot run this model: {exc}") from None
-    backend = "ground" if ground_model is not None else "general"
+        except GroundingStopped as exc:
+            grounding_stopped = str(exc)
+    backend = "ground" if ground_model is not None or grounding_stopped else "general"
     reduction = "off"
     if job.reduction:
         if backend == "ground":
@@ -301,7 +314,13 @@ def _run_job(job: Job, on_progress) -> JobResult:
                 verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else check_livelock(graph)
         return verdicts
 
-    if ground_model is not None:
+    if grounding_stopped is not None:
+        # the budget ran out before the search could start: the start state, unexpanded
+        ex = Explorer(ClfSystem(program, start, options), job.search, on_progress)
+        graph = ex.run(Budget(max_states=1))
+        graph.stop_reason = grounding_stopped
+        verdicts = decide(graph, lambda sid: ex.states[sid])
+    elif ground_model is not None:
         rounds = _GroundRounds(ground_model, on_progress)
         graph, verdicts = _rounds(job, t0, rounds, lambda g: decide(g, rounds.state_of))
     else:
@@ -317,7 +336,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
         if got != want:
             mismatches.append(f"{p}: expected {want}, got {got}")
     return JobResult(job, verdicts, graph, backend, time.perf_counter() - t0, rss_mb(), mismatches, program,
-                     reduction)
+                     reduction, fingerprint)
 
 
 class _GroundRounds:
@@ -329,6 +348,7 @@ class _GroundRounds:
         self.gx: Optional[GroundExplorer] = None
 
     def run(self, budget: Budget) -> StateGraph:
+        self.gx = None  # each round searches afresh: free the last one before the next takes memory
         self.gx = GroundExplorer(self.model, self.on_progress)
         return self.gx.run(budget)
 
@@ -389,10 +409,16 @@ def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in result.job.name)
     path = folder / f"{safe}.{prop}.jsonl"
     job = result.job
+    # paths are recorded for people to read; replay never opens them (docs/trust.md): it takes
+    # the model from its command line and compares the fingerprint of its sources
     where = ({"spec": str(job.spec), "request": job.request,
               "functional": str(job.functional) if job.functional else None} if job.is_roar
              else {"model": str(job.model), "start": job.start})
-    header = {"kind": "counterexample", "property": prop, **where,
+    if job.is_roar and getattr(result, "roar", None) is not None:   # the pairs of make; make the job checked (TCA reads them)
+        header_pairs = {"seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text] for p in result.roar[2].system.pairs]}
+    else:
+        header_pairs = {}
+    header = {"kind": "counterexample", "property": prop, **where, **header_pairs, "fingerprint": result.fingerprint,
               "job": str(result.job.path), "shape": v.counterexample.kind,
               "final_state": result.graph.describe_state(v.counterexample.final_state)
               if result.graph.describe_state else []}

@@ -7,12 +7,14 @@ from pathlib import Path
 from typing import List, Optional
 
 import typer
-
-from ..errors import RoarError
 from rich.console import Console
 from rich.live import Live
 from rich.markup import escape
 from rich.table import Table
+from rich.text import Text
+
+from ..console import make_console
+from ..errors import RoarError
 
 
 _STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
@@ -32,7 +34,7 @@ def register(app: typer.Typer) -> None:
         from .check import run_job, save_counterexample
         from .jobs import find_jobs, load_job
 
-        console = Console(highlight=False, stderr=as_json)
+        console = make_console(stderr=as_json)
         files = find_jobs(paths)
         jobs = [load_job(f) for f in files]  # every job file is checked before anything runs
         results = []
@@ -67,8 +69,11 @@ def register(app: typer.Typer) -> None:
     @app.command("replay")
     def replay_cmd(
         trace: Path = typer.Argument(..., help="A trace written by 'roar-verify check' (JSON Lines)."),
-        model: Optional[Path] = typer.Option(None, "--model", help="The model, if the trace does not name it; "
-                                             "for a robot trace or --on-robot, the spec."),
+        model: Optional[Path] = typer.Option(
+            None, "--model",
+            help="The model to replay on: the ROAR spec of a job on a spec or of a robot trace (its "
+                 "functional-layer module is found next to it), or the .clf program. Required: a trace's own "
+                 "paths are never opened (docs/trust.md)."),
         states: bool = typer.Option(False, "--states", help="Print the whole state after every step."),
         on_robot: Optional[Path] = typer.Option(None, "--on-robot", help="Drive the reference robot of this "
                                                 "scenario through the counterexample (needs --model SPEC)."),
@@ -76,11 +81,14 @@ def register(app: typer.Typer) -> None:
         fault: List[str] = typer.Option([], "--fault", help="With --on-robot: a fault point of the scenario."),
         loops: int = typer.Option(3, "--loops", help="With --on-robot: how many times to drive a lasso's cycle."),
         png: Optional[Path] = typer.Option(None, "--png", help="With --on-robot: draw the robot's run here."),
-        functional: Optional[Path] = typer.Option(None, "--functional", help="The spec's functional-layer module."),
-        force: bool = typer.Option(False, "--force", help="Replay a robot trace made from other sources."),
+        functional: Optional[Path] = typer.Option(
+            None, "--functional", help="With a spec: this functional-layer module instead of the one next to it."),
+        force: bool = typer.Option(False, "--force",
+                                   help="Replay even if the model's sources differ from those the trace records."),
     ) -> None:
         """Step through a trace on the engine, checking that every step is enabled.
 
+        The model comes from --model, never from the trace: a trace is data (docs/trust.md).
         A robot trace (from `simulate --trace`) replays on the compiled model of the spec given with
         --model; a counterexample replays on the robot with --on-robot SCENARIO --model SPEC.
         """
@@ -96,33 +104,38 @@ def register(app: typer.Typer) -> None:
         from ..clf.query import show_context, with_big_stack
         from ..trace.replay import replay
 
-        console = Console(highlight=False)
+        console = make_console()
 
         def on_step(i, rec, state):
             loop = " (cycle)" if rec.get("loop") else ""
-            console.print(f"[bold]{i:>4}.[/] {escape(rec.get('rule', '?'))} [dim]\\[{escape(str(rec.get('group', '')))}]"
-                          f"{loop}[/]  {escape(', '.join(rec.get('consumed', [])))} -> "
-                          f"{escape(', '.join(rec.get('produced', [])))}")
+            console.print(f"[bold]{i:>4}.[/] {escape(rec['rule'])} [dim]\\[{escape(str(rec['group']))}]"
+                          f"{loop}[/]  {escape(', '.join(rec['consumed']))} -> "
+                          f"{escape(', '.join(rec['produced']))}", markup=True)
             if states:
                 for line in show_context(state):
-                    console.print(f"        {escape(line)}")
+                    console.print(f"        {line}")
 
-        res = with_big_stack(replay, trace, on_step, str(model) if model else None)
+        def run():
+            return replay(trace, on_step, model, functional=functional, force=force)
+
+        res = with_big_stack(run)
+        for note in res.notes:
+            console.print(f"note: {note}", style="yellow")
         tail = " and the cycle closes" if res.cycle_closes else ""
-        console.print(f"[green]replayed {res.steps} step{'s' if res.steps != 1 else ''}{tail}[/]")
+        console.print(f"replayed {res.steps} step{'s' if res.steps != 1 else ''}{tail}", style="green")
 
 
 def _print_result(console: Console, res, verbose: bool) -> None:
-    head = "[green]ok[/]" if res.ok else "[red]UNEXPECTED[/]"
+    head = "[green]ok[/]" if res.ok else "[red]UNEXPECTED[/]"  # printed with markup=True
     g = res.graph
     console.print(f"{head} [bold]{escape(res.job.name)}[/]  ({g.n_states:,} states, {g.n_edges:,} transitions, "
-                  f"{res.seconds:.2f} s, backend {res.backend})")
+                  f"{res.seconds:.2f} s, backend {res.backend})", markup=True)
     for p, v in res.verdicts.items():
-        console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}")
+        console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}", markup=True)
         if v.counterexample is not None:
             _print_cx(console, res, p, verbose)
     for m in res.mismatches:
-        console.print(f"  [red]{escape(m)}[/]")
+        console.print(f"  {m}", style="red")
 
 
 def _print_cx(console: Console, res, prop: str, verbose: bool) -> None:
@@ -133,27 +146,28 @@ def _print_cx(console: Console, res, prop: str, verbose: bool) -> None:
     events = roar_events(res, v)
     for i, s in enumerate(steps, 1):
         if s["loop"] and (i == 1 or not steps[i - 2]["loop"]):
-            console.print("    [yellow]-- cycle (repeats forever) --[/]")
+            console.print("    -- cycle (repeats forever) --", style="yellow")
         if events is not None:
             # ROAR level: one line per event; the CLF rule of its step with --verbose
             for ev in events[i - 1]:
                 rule = f"  [dim]({escape(s['rule'])})[/]" if verbose else ""
-                console.print(f"    {i:>3}. {escape(ev.agent):<12} {escape(ev.text)}{rule}")
+                console.print(f"    {i:>3}. {escape(ev.agent):<12} {escape(ev.text)}{rule}", markup=True)
             if verbose and not events[i - 1]:
-                console.print(f"    {i:>3}. [dim]\\[{escape(s['group'])}] {escape(s['rule'])}[/]")
+                console.print(f"    {i:>3}. [dim]\\[{escape(s['group'])}] {escape(s['rule'])}[/]", markup=True)
             continue
         line = f"    {i:>3}. \\[{escape(s['group'])}] {escape(s['rule'])}"
         if verbose:
             line += f"  {escape(', '.join(s.get('consumed', [])))} -> {escape(', '.join(s.get('produced', [])))}"
-        console.print(line)
+        console.print(line, markup=True)
     if v.counterexample.kind == "path" and res.graph.describe_state:
         final = res.graph.describe_state(v.counterexample.final_state)
         if events is not None and not verbose:
             final = _roar_state(res, v.counterexample.final_state)
-        console.print("    final state: " + escape("; ".join(x for x in final if not x.startswith("!"))))
+        console.print("    final state: " + "; ".join(x for x in final if not x.startswith("!")))
     saved = getattr(res, "saved", {}).get(prop)
     if saved:
-        console.print(f"    trace: {escape(str(saved))}  (roar-verify replay {escape(str(saved))})")
+        job = res.job
+        console.print(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model})")
 
 
 def _roar_state(res, sid: int) -> list[str]:
@@ -206,9 +220,9 @@ def _summary(console: Console, results) -> None:
             else:
                 want = r.job.expect.get(p)
                 mark = "" if want is None or want == v.status else f" (want {want})"
-                cells.append(f"[{_STYLE[v.status]}]{v.status}[/]{mark}")
-        t.add_row(escape(r.job.name), *cells, f"{r.graph.n_states:,}", f"{r.seconds:.2f} s",
-                  "[green]as expected[/]" if r.ok else "[red]unexpected[/]")
+                cells.append(Text.assemble((v.status, _STYLE[v.status]), mark))
+        t.add_row(r.job.name, *cells, f"{r.graph.n_states:,}", f"{r.seconds:.2f} s",
+                  Text("as expected", style="green") if r.ok else Text("unexpected", style="red"))
     console.print(t)
 
 

@@ -35,12 +35,16 @@ from ..clf.forward import _multiset_key, enabled_steps, fire
 from ..clf.program import Program
 from ..clf.rules import AFF, LIN, PERS
 from .graph import Interner, StateGraph
-from .search import Budget, rss_mb
+from .search import Budget, MemoryWatch, current_rss_mb
 from .system import Options, is_progress, step_group
 
 
 class NotGround(Exception):
     """The program is outside this backend's fragment (fresh names, run-time rules, ...)."""
+
+
+class GroundingStopped(Exception):
+    """Grounding ran out of the job's time or memory budget (the reason says which)."""
 
 
 @dataclass
@@ -56,8 +60,14 @@ class Instance:
 class GroundModel:
     """The ground instances of a program from a start context, over a column per (mode, fact)."""
 
-    def __init__(self, program: Program, start: Context, options: Options, max_facts: int = 200_000):
+    def __init__(self, program: Program, start: Context, options: Options, max_facts: int = 200_000,
+                 budget: Optional[Budget] = None, deadline: Optional[float] = None):
+        """``deadline`` (a ``time.perf_counter()`` value) and ``budget.max_memory_mb`` bound the
+        grounding itself: past either, :class:`GroundingStopped` is raised."""
         self.program = program
+        self.deadline = deadline
+        self.memory = MemoryWatch(budget.max_memory_mb if budget is not None else None)
+        self.budget = budget
         self.options = options
         for t in program.templates:
             if not t.forward:
@@ -87,16 +97,30 @@ class GroundModel:
             self.facts.append(k)
         return c
 
+    def _check_budget(self, work: int) -> None:
+        if self.deadline is not None and time.perf_counter() >= self.deadline:
+            raise GroundingStopped(f"time budget of {self.budget.max_seconds:g} s reached while grounding the model "
+                                   f"({len(self.facts):,} facts, {len(self.instances):,} rule instances so far)")
+        if self.memory.over(work):
+            raise GroundingStopped(f"memory budget of {self.budget.max_memory_mb:g} MiB reached while grounding "
+                                   f"the model ({len(self.facts):,} facts, {len(self.instances):,} rule instances "
+                                   "so far)")
+
     def _ground(self, max_facts: int) -> None:
         seen_inst: set = set()
         done = 0
+        work = 0
         while True:
+            self._check_budget(work)
             universe = Context()
             for mode, t in self.facts:
                 for _ in range(1 if mode == PERS else 4):
                     universe.add_fact(t, mode)
             before = len(self.facts)
             for choice in enabled_steps(self.program.templates, universe):
+                work += 1
+                if not work & 63:
+                    self._check_budget(work)
                 key = (id(choice.template), choice.bindings, _multiset_key(choice.consumed))
                 if key in seen_inst:
                     continue
@@ -275,8 +299,8 @@ class GroundExplorer:
             if budget.max_seconds is not None and time.perf_counter() - t0 >= budget.max_seconds:
                 complete, stop = False, f"time budget of {budget.max_seconds:g} s reached"
                 break
-            if budget.max_memory_mb is not None and rss_mb() > budget.max_memory_mb:
-                complete, stop = False, f"memory budget of {budget.max_memory_mb} MiB reached"
+            if budget.max_memory_mb is not None and current_rss_mb() > budget.max_memory_mb:
+                complete, stop = False, f"memory budget of {budget.max_memory_mb:g} MiB reached"
                 break
             srcs, insts = [], []
             for i, pairs in enumerate(self.needs):
@@ -294,6 +318,17 @@ class GroundExplorer:
                         raise Overflow
                 srcs.append(idx)
                 insts.append(np.full(len(idx), i, dtype=np.int16))
+            if budget.max_memory_mb is not None and srcs:
+                # what this level will take before it can be given back: the candidate
+                # transitions' words, hashes and indices, the copies the visited arrays make
+                # when they grow, and the edge arrays of the graph
+                n_cand = sum(len(x) for x in srcs)
+                need = (n_cand * (16 * self.nwords + 136) + n_states * (16 + 8 * self.nwords)) / 1048576.0
+                now_mb = current_rss_mb()
+                if now_mb + need > budget.max_memory_mb:
+                    complete, stop = False, (f"memory budget of {budget.max_memory_mb:g} MiB reached (the next "
+                                             f"level, {n_cand:,} transitions, needs about {need:,.0f} MiB more)")
+                    break
             expanded_upto = int(f_ids[-1]) + 1
             if not srcs:
                 f_ids = f_ids[:0]
@@ -377,7 +412,8 @@ class GroundExplorer:
             if self.on_progress is not None:
                 el = time.perf_counter() - t0
                 self.on_progress({"states": n_states, "transitions": n_edges, "frontier": len(f_ids),
-                                  "seconds": el, "states_per_s": n_states / max(el, 1e-9), "memory_mb": rss_mb()})
+                                  "seconds": el, "states_per_s": n_states / max(el, 1e-9),
+                                  "memory_mb": current_rss_mb()})
         if complete:
             expanded_upto = n_states
         g = StateGraph()

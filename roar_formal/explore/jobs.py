@@ -136,7 +136,7 @@ def _bound(b: dict, key: str, path: Path, expected: str, low: float, integer: bo
     if not ok:
         shown = ("true" if v else "false") if isinstance(v, bool) else json.dumps(v) if isinstance(v, str) \
             else repr(v) if isinstance(v, (int, float)) else f"a {type(v).__name__}"
-        raise RoarError(f"[bounds] {key} must be {expected} (at most {MAX_BOUND:.0e}), not {shown}",
+        raise RoarError(f"[bounds] {key} must be {expected} (at most {MAX_BOUND:,}), not {shown}",
                         _value_pos(path, key))
     return float(v) if not integer else v
 

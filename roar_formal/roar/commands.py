@@ -188,6 +188,9 @@ def write_run_trace(path: Path, res, spec, request: str, seed: int, faults) -> N
         steps.append({"rule": rule, "consumed": consumed, "produced": produced,
                       "event": (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None,
                       "loop": False})
-    header = {"kind": "roar-run", "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
+    from .explore import sequential_pairs
+    header = {"kind": "roar-run", "seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text]
+                                                for p in sequential_pairs(res.model)],
+              "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
               "outcome": res.outcome, "requests": res.requests}
     write_trace(path, header, steps)

@@ -267,6 +267,12 @@ class Narrator:
         self.req_info: dict = {}     # label -> (agent, text)
         self.calls: dict = {}        # dest -> (agent, function text)
         self.acts: dict = {}         # inst -> (agent, task, recipe)
+        # the task tree (for TCA): which request each activation handles, each request's parent
+        self.inst_req: dict = {}     # inst -> label of the request it handles
+        self.inst_labels: dict = {}  # inst -> "I<n>"
+        self.req_meta: dict = {}     # label -> {"parent", "rkind", "emitter", "site"}
+        self.call_ids: dict = {}     # dest -> "C<n>"
+        self.n_calls = 0
 
     def label(self, r) -> str:
         lab = self.labels.get(r)
@@ -278,6 +284,13 @@ class Narrator:
     def _name(self, t) -> str:
         return t.head.name if isinstance(t.head, Const) else show(t)
 
+    def inst_label(self, inst) -> str:
+        lab = self.inst_labels.get(inst)
+        if lab is None:
+            lab = f"I{len(self.inst_labels) + 1}"
+            self.inst_labels[inst] = lab
+        return lab
+
     def events(self, i: int, step) -> list[RoarEvent]:
         m = self.m
         out: list[RoarEvent] = []
@@ -288,20 +301,33 @@ class Narrator:
         def by(fam, facts):
             return groups[id(facts)].get(fam, ())
         rule = step.rule
+        # activations: which request each handles (the task tree's edges go through them)
+        for fam in ("act", "chk"):
+            for f in by(fam, prod):
+                if f.args[0] not in self.inst_req:
+                    self.inst_req[f.args[0]] = self.label(f.args[1])
         # requests created
         for f in by("rq", prod):
             r = f.args[0]
-            if r not in self.labels:
+            new = r not in self.labels
+            if new or self.labels[r] not in self.req_meta:
                 lab = self.label(r)
                 agent, text = m.csts.get(self._name(f.args[2]), ("?", "?"))
                 agent = m.agents.get(self._name(f.args[1]), agent)
-                self.req_info[lab] = (agent, text)
+                self.req_info.setdefault(lab, (agent, text))
                 kind = self._name(f.args[4]) if isinstance(f.args[4].head, Const) else "?"
-                if kind in ("k_make", "k_ensure"):
-                    site = m.sites.get(site_of(rule))
+                emitter = f.args[3]
+                outside = isinstance(emitter.head, Const) and emitter.head.name == "itop"
+                site = m.sites.get(site_of(rule))
+                self.req_meta[lab] = {"parent": None if outside else self.inst_req.get(emitter),
+                                      "rkind": {"k_make": "make", "k_ensure": "ensure"}.get(kind, "task"),
+                                      "emitter": None if outside else self.inst_label(emitter),
+                                      "site": site.const if site is not None and not outside else None}
+                if new and kind in ("k_make", "k_ensure"):
                     sender = site.agent if site else "outside"
                     out.append(RoarEvent(i, "sent", sender,
-                                         f"{kind[2:]} {lab} to {agent}: {text}", {"request": lab}))
+                                         f"{kind[2:]} {lab} to {agent}: {text}", {"request": lab,
+                                                                                   **self.req_meta[lab]}))
         # state changes
         old = {f.args[0]: self._name(f.args[1]) for f in by("rs", consumed)}
         for f in by("rs", prod):
@@ -314,14 +340,16 @@ class Narrator:
                 prev = old.get(r)
                 out.append(RoarEvent(i, "state", agent, f"{lab} {STATE_NAMES.get(prev, 'new') if prev else 'new'}"
                                      f" -> {STATE_NAMES[s]}  ({text})",
-                                     {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s]}))
+                                     {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s],
+                                      **self.req_meta.get(lab, {})}))
         for f in by("rs", consumed):
             r = f.args[0]
             if not any(g.args[0] is r for g in by("rs", prod)) and rule.startswith("aborted"):
                 lab = self.label(r)
                 agent, text = self.req_info.get(lab, ("?", "?"))
                 out.append(RoarEvent(i, "state", agent, f"{lab} {STATE_NAMES.get(self._name(f.args[1]))} -> aborted"
-                                     f"  ({text})", {"request": lab, "to": "aborted"}))
+                                     f"  ({text})", {"request": lab, "from": STATE_NAMES.get(self._name(f.args[1])),
+                                                     "to": "aborted", **self.req_meta.get(lab, {})}))
         # aborts sent, concurrency issues
         for f in by("abortreq", prod):
             lab = self.label(f.args[0])
@@ -378,17 +406,23 @@ class Narrator:
             site = m.sites.get(site_of(rule))
             agent = site.agent if site else (owner or "?")
             self.calls[f.args[2]] = (agent, f"{name}({args})")
-            out.append(RoarEvent(i, "primitive-start", agent, f"{name}({args})", {"function": name}))
+            self.n_calls += 1
+            cid = self.call_ids[f.args[2]] = f"C{self.n_calls}"
+            inst = next((g.args[0] for fam in ("ctl", "chk") for g in by(fam, consumed)), None)
+            out.append(RoarEvent(i, "primitive-start", agent, f"{name}({args})",
+                                 {"function": name, "call": cid, "request": self.inst_req.get(inst)}))
         for f in by("return", consumed):
             if f.args[1] in self.calls:
                 agent, call = self.calls.pop(f.args[1])
                 dropped = " (dropped: the recipe was stopped)" if rule == "drop_result" else ""
                 out.append(RoarEvent(i, "primitive-end", agent, f"{call} = {_show_value(f.args[0])}{dropped}",
-                                     {"value": _show_value(f.args[0]), "dropped": bool(dropped)}))
+                                     {"value": _show_value(f.args[0]), "dropped": bool(dropped),
+                                      "call": self.call_ids.get(f.args[1])}))
         for f in by("callfail", consumed):
             if f.args[0] in self.calls:
                 agent, call = self.calls.pop(f.args[0])
-                out.append(RoarEvent(i, "primitive-end", agent, f"{call} failed", {"failed": True}))
+                out.append(RoarEvent(i, "primitive-end", agent, f"{call} failed",
+                                     {"failed": True, "call": self.call_ids.get(f.args[0])}))
         # variable writes
         before = {f.args[0]: f.args[1] for f in by("contains", consumed)}
         site = m.sites.get(site_of(rule))

@@ -76,8 +76,10 @@ def step_records(res: SimResult) -> list[dict]:
 def write_robot_trace(path, res: SimResult, spec: str, request: str, scenario_path: Optional[str],
                       spec_files=()) -> None:
     steps = [{k: v for k, v in r.items() if k != "step"} for r in step_records(res)]
+    from ..roar.explore import sequential_pairs
     sc = res.robot.scenario
-    header = {"kind": TRACE_KIND, "spec": str(spec), "request": request, "seed": res.seed,
+    pairs = [[p.a, p.b, p.where, p.a_text, p.b_text] for p in sequential_pairs(res.run.model)]
+    header = {"kind": TRACE_KIND, "seq_pairs": pairs, "spec": str(spec), "request": request, "seed": res.seed,
               "faults": list(res.faults), "primitive_faults": list(res.prim_faults),
               "scenario": scenario_path, "scenario_name": sc.name, "scenario_fingerprint": sc.fingerprint,
               "spec_fingerprint": sources_fingerprint(spec_files) if spec_files else None,

@@ -26,10 +26,12 @@ import time
 from bisect import bisect_right
 from dataclasses import dataclass
 from fractions import Fraction
+from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Optional
 
 import z3
 
+from ..errors import Pos, RoarError
 from .axioms import BY_NAME as AXIOMS
 from .difference import DifferenceSystem, NotDifference, atoms as difference_atoms
 from .evaluate import LATE, UNKNOWN, compile_formula, compile_residual
@@ -394,6 +396,31 @@ def check_events(events: Iterable[Event]) -> CheckReport:
     return check_tree(tree, problems)
 
 
+def read_task_tree(path) -> list[Event]:
+    """The task-tree events of a trace: a trace of the project (``run``, ``simulate``, a ``check``
+    counterexample) read as its ROAR task tree (roar_runs), or a file of TCA events as it is."""
+    from ..trace.format import read_trace
+    from .roar_runs import is_roar_trace, task_tree_events
+    path = Path(path)
+    try:
+        with path.open(encoding="utf-8") as handle:
+            first = handle.readline()
+    except OSError as exc:
+        raise RoarError(f"cannot read trace: {exc.strerror}", Pos(str(path), 1, 1)) from None
+    except UnicodeDecodeError as exc:
+        raise RoarError(f"trace is not UTF-8 text: {exc.reason}", Pos(str(path), 1, 1)) from None
+    if '"roar-formal"' in first:
+        header, steps = read_trace(path)
+        if is_roar_trace(header):
+            return task_tree_events(header, steps, str(path))
+    return read_events(path)
+
+
 def check_trace(path) -> CheckReport:
-    """Read a JSON Lines trace and check it."""
-    return check_events(read_events(path))
+    """Read a trace and check it. A trace with no task-tree message is an error, not a pass:
+    nothing was checked."""
+    report = check_events(read_task_tree(path))
+    if not report.tree.messages:
+        raise RoarError(f"the trace holds no task-tree message (no request, no primitive call, no "
+                        f"constraint_sent record): there is nothing to check", Pos(str(path), 1, 1))
+    return report

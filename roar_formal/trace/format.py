@@ -10,13 +10,16 @@ each further line is one step::
 state change, recipe selected, primitive started or ended) when there is one.
 ``loop`` marks the steps of a lasso's repeating cycle. Files are written
 atomically (a temporary file renamed over the target), so a reader never sees
-half a trace and an interrupted write never destroys an earlier one.
+half a trace and an interrupted write never destroys an earlier one (nor leaves its
+temporary file behind for long: see :func:`write_atomic`).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
+import socket
 import tempfile
 from pathlib import Path
 from typing import Iterable, Iterator
@@ -27,10 +30,16 @@ VERSION = 1
 
 
 def write_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder."""
+    """Write ``text`` to ``path`` through a temporary file in the same folder.
+
+    The temporary file is ``.NAME.HOST.PID-XXXXXXXX.tmp``: removed if the write fails or is
+    interrupted (an exception, Ctrl-C, or SIGTERM through the command line's handler); one
+    left behind by a killed process (SIGKILL, power loss) is removed by the next write in the
+    same folder on the same host, once its process is gone."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    remove_stale_temporaries(path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}.{os.getpid()}-", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
@@ -43,6 +52,42 @@ def write_atomic(path: str | Path, text: str) -> None:
         except OSError:
             pass
         raise
+
+
+_HOST = re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname() or "host")[:40]
+_TEMPORARY = re.compile(r"^\..+\.(?P<host>[A-Za-z0-9-]+)\.(?P<pid>\d+)-[A-Za-z0-9_]+\.tmp$")
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True  # someone else's process, or no way to tell: keep its file
+    return True
+
+
+def remove_stale_temporaries(folder: str | Path) -> list[Path]:
+    """Remove the temporary files of :func:`write_atomic` in ``folder`` whose writer, a process
+    of this host, no longer runs; returns them."""
+    removed = []
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed
+    for name in names:
+        m = _TEMPORARY.match(name)
+        if m is None or m.group("host") != _HOST or _alive(int(m.group("pid"))):
+            continue
+        try:
+            os.unlink(Path(folder) / name)
+            removed.append(Path(folder) / name)
+        except OSError:
+            pass
+    return removed
 
 
 def write_trace(path: str | Path, header: dict, steps: Iterable[dict]) -> None:

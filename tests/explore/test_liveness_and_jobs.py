@@ -190,8 +190,9 @@ def test_saved_counterexamples_replay_on_the_engine(tmp_path, capsys):
             main(["check", str(ROOT / "checker" / job), "--traces", str(tmp_path)])
     capsys.readouterr()
     for trace in sorted(tmp_path.glob("*.jsonl")):
+        model = ROOT / "models" / "philosophers" / ("dl.clf" if "-dl-" in trace.name else "ll.clf")
         with pytest.raises(SystemExit) as e:
-            main(["replay", str(trace)])
+            main(["replay", str(trace), "--model", str(model)])
         assert e.value.code == 0
         out = capsys.readouterr().out
         assert "replayed" in out
@@ -208,7 +209,7 @@ def test_a_tampered_trace_does_not_replay(tmp_path, capsys):
     trace.write_text("\n".join(lines) + "\n")
     capsys.readouterr()
     with pytest.raises(SystemExit) as e:
-        main(["replay", str(trace)])
+        main(["replay", str(trace), "--model", str(ROOT / "models/philosophers/dl.clf")])
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert "step 2 (eat) cannot be replayed" in err.replace("\n", " ") and "Traceback" not in err
@@ -236,6 +237,6 @@ deadlock = "violated"
     assert "#" in trace.read_text()  # fresh names are recorded as hint#id
     capsys.readouterr()
     with pytest.raises(SystemExit) as e:
-        main(["replay", str(trace)])
+        main(["replay", str(trace), "--model", str(model)])
     assert e.value.code == 0, capsys.readouterr()
     assert "replayed 4 steps" in capsys.readouterr().out

@@ -237,7 +237,7 @@ def test_reduced_counterexamples_replay(tmp_path):
         v = res.verdicts["deadlock"]
         assert v.violated, name
         trace = save_counterexample(res, "deadlock", sub)
-        rr = replay(trace)
+        rr = replay(trace, model=model)
         assert rr.steps == len(v.counterexample.prefix)
         # the replayed end state is the reported deadlock, and it is quiescent
         assert not res.program.steps(rr.states[-1])

@@ -1,0 +1,739 @@
+"""The public API: load a spec or a CLF model, run it, explore it, read the results.
+
+One object per thing a user has in hand, so that a test needs one import
+instead of the parser, the compiler, the runner, the job loader and a CLI
+module::
+
+    import roar_formal as rf
+
+    spec = rf.load_spec("specs/pick.roar")            # SPEC.py next to it is its functional layer
+    run = spec.run("cell::lifted == true", seed=3, faults=["close_jaws:1"])
+    run.ok, run.outcome, run.final["gripper::busy"]
+    print(run)                                         # the ROAR-level trace, as `roar-verify run` prints it
+
+    res = spec.explore("cell::lifted == true", ["deadlock", "livelock"])
+    res.verdict("deadlock").status                     # holds | violated | incomplete
+    print(res.counterexample("livelock"))              # as `roar-verify check` prints it
+
+Results print themselves as the command line prints them: a run like
+``roar-verify run``, a counterexample like ``roar-verify check`` (the
+check printer is the command line's own, so the two cannot drift apart).
+Every mistake in the input is a :class:`~roar_formal.errors.RoarError` with
+a location, as on the command line.
+"""
+
+from __future__ import annotations
+
+import atexit
+import hashlib
+import io
+import re
+import shutil
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Optional, Sequence, Union
+
+from ..errors import Pos, RoarError
+from ..explore.search import Budget
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..clf.program import Program
+    from ..explore.check import JobResult
+    from ..explore.properties import Verdict
+    from ..roar import ast as a
+    from ..roar.compile import CompiledModel
+    from ..roar.functional import Registry
+    from ..roar.run import Fault, RoarEvent, RunResult
+
+__all__ = [
+    "AgentSpec", "ClfModel", "ClfRun", "Counterexample", "Exploration", "RunReport", "Budget", "RoarError",
+    "load", "load_spec", "load_clf", "as_budget", "ROAR_PROPERTIES", "CLF_PROPERTIES",
+]
+
+PathLike = Union[str, Path]
+FaultLike = Union[str, "Fault"]
+BudgetLike = Union[Budget, Mapping[str, Any], None]
+
+#: properties a job on a spec can check (docs/checking.md, "Jobs on a ROAR spec")
+ROAR_PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant")
+#: properties a job on a .clf model can check
+CLF_PROPERTIES = ("deadlock", "livelock", "invariant")
+
+
+# ---------------------------------------------------------------------------- loading
+
+
+def load(path: PathLike, *, functional: Optional[PathLike] = None) -> Union["AgentSpec", "ClfModel"]:
+    """A ``.clf`` file as a :class:`ClfModel`; anything else (``.roar``, ``.ability``, a hyper folder)
+    as an :class:`AgentSpec`."""
+    p = Path(path)
+    if p.suffix == ".clf":
+        if functional is not None:
+            raise RoarError(f"{p}: a .clf model has no functional layer; 'functional' is for agent specs")
+        return load_clf(p)
+    return load_spec(p, functional=functional)
+
+
+def load_spec(path: PathLike, *, functional: Optional[PathLike] = None, hyper_compat: bool = False) -> "AgentSpec":
+    """Parse and check an agent spec (static checks included); its functional-layer module is
+    ``functional`` or found next to it as ``roar-verify run`` finds it."""
+    from ..roar.commands import functional_module
+    from ..roar.parser import load_spec as parse_spec
+    p = Path(path)
+    tree = parse_spec(p, hyper_compat=hyper_compat)
+    module = functional_module(p, Path(functional) if functional is not None else None)
+    return AgentSpec(tree, p, functional=module)
+
+
+def load_clf(path: PathLike) -> "ClfModel":
+    """Parse and type-check a CLF program (Celf's language)."""
+    p = Path(path)
+    if not p.is_file():
+        raise RoarError(f"cannot read {p}: no such file")
+    return ClfModel(p)
+
+
+def as_budget(budget: BudgetLike) -> Budget:
+    """A :class:`Budget` from a Budget, a mapping with its keys, or None (no bound)."""
+    if budget is None:
+        return Budget()
+    if isinstance(budget, Budget):
+        return budget
+    keys = {"max_states", "max_seconds", "max_memory_mb"}
+    unknown = set(budget) - keys
+    if unknown:
+        raise RoarError(f"unknown budget key {sorted(unknown)[0]!r}; expected one of: {', '.join(sorted(keys))}")
+    return Budget(**dict(budget))
+
+
+# Specs and models given as text live in one temporary folder of the process: the explorer
+# (like the command line) reads a model from a file, and a file also gives errors a name.
+_SCRATCH: list[Path] = []
+
+
+def _scratch() -> Path:
+    if not _SCRATCH:
+        d = Path(tempfile.mkdtemp(prefix="roar-formal-"))
+        _SCRATCH.append(d)
+        atexit.register(shutil.rmtree, d, True)
+    return _SCRATCH[0]
+
+
+def _scratch_file(text: str, name: str, suffix: str) -> Path:
+    safe = re.sub(r"[^A-Za-z0-9_-]", "_", name) or "model"
+    digest = hashlib.sha1(text.encode("utf-8")).hexdigest()[:12]
+    folder = _scratch() / digest
+    folder.mkdir(exist_ok=True)
+    path = folder / f"{safe}{suffix}"
+    if not path.exists():
+        path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _caller_pos() -> Pos:
+    """Where the user's code called in (the first frame outside roar_formal): the position
+    given to patterns written in a test, so that a bad pattern is reported at its line."""
+    f = sys._getframe(1)
+    while f is not None and f.f_globals.get("__name__", "").startswith("roar_formal."):
+        f = f.f_back
+    if f is None:
+        return Pos("<python>", 1, 1)
+    return Pos(f.f_code.co_filename, f.f_lineno, 1)
+
+
+def _console(buf: io.StringIO):
+    from ..console import make_console
+    return make_console(file=buf, width=100_000, color_system=None, force_terminal=False, soft_wrap=True)
+
+
+def _triple_quoted(text: str) -> str:
+    body = text.replace("\\", "\\\\").replace("'''", "\\'\\'\\'")
+    return "'''\n" + body + ("" if body.endswith("\n") else "\n") + "'''"
+
+
+# ---------------------------------------------------------------------------- agent specs
+
+
+class AgentSpec:
+    """A checked agent spec and its functional layer: what ``roar-verify run``, ``check``,
+    ``simulate`` and ``conform`` take as SPEC, as one object.
+
+    Compiled models are cached per request, so a property test that runs one spec on
+    many seeds or fault schedules compiles it once.
+    """
+
+    def __init__(self, tree: "a.Spec", path: Optional[Path] = None, *, functional: Optional[Path] = None,
+                 text: Optional[str] = None, name: Optional[str] = None):
+        self.ast = tree
+        self.path = Path(path) if path is not None else None
+        self.functional = Path(functional) if functional is not None else None
+        self.text = text
+        self.name = name or (str(self.path) if self.path is not None else "<spec>")
+        self._compiled: dict[tuple[str, str], "CompiledModel"] = {}
+
+    # -- construction -------------------------------------------------------------
+    @classmethod
+    def from_text(cls, text: str, *, name: str = "spec", functional: Optional[PathLike] = None) -> "AgentSpec":
+        """A spec in the single-file layout given as text (checked). It is written to a scratch
+        file so that the explorer and error messages have a file to name."""
+        from ..roar.parser import load_spec as parse_spec
+        path = _scratch_file(text, name, ".roar")
+        tree = parse_spec(path)
+        return cls(tree, path, functional=Path(functional) if functional is not None else None, text=text,
+                   name=f"<{name}>")
+
+    def __repr__(self) -> str:
+        if self.text is not None:   # generated specs print as code that rebuilds them
+            return f"AgentSpec.from_text({_triple_quoted(self.text)})"
+        return f"<AgentSpec {self.name}: agents {', '.join(self.agents)}>"
+
+    def _repr_pretty_(self, p: Any, cycle: bool) -> None:  # hypothesis' and IPython's printer
+        p.text(repr(self))
+
+    # -- what it holds ----------------------------------------------------------------
+    @property
+    def agents(self) -> list[str]:
+        return [ag.name for ag in self.ast.agents]
+
+    def functions(self) -> list[tuple[str, str]]:
+        """``(agent, function)`` for every function the agents export."""
+        return [(ag.name, f.name) for ag in self.ast.agents for f in ag.functions]
+
+    def registry(self) -> Optional["Registry"]:
+        """A fresh registry of the functional layer (its ``registry()`` is called anew: each run
+        gets its own simulation), or None when the spec has no module."""
+        from ..roar.commands import load_registry
+        return load_registry(self.functional)
+
+    def compile(self, request: str, mode: str = "python") -> "CompiledModel":
+        """The compiled model of a request: ``mode`` "python" for runs (the registry's callables
+        answer calls), "abstract" for exploration (declared outcomes are rules)."""
+        from ..roar.compile import compile_spec
+        if mode not in ("python", "abstract"):
+            raise RoarError(f"compile mode must be 'python' or 'abstract', not {mode!r}")
+        key = (request, mode)
+        model = self._compiled.get(key)
+        if model is None:
+            model = self._compiled[key] = compile_spec(self.ast, request, registry=self.registry(),
+                                                       functional=mode)
+        return model
+
+    # -- running -----------------------------------------------------------------------
+    def run(self, request: str, *, seed: int = 0, faults: Iterable[FaultLike] = (), max_steps: int = 100_000,
+            fair: bool = False, strict_faults: bool = False, scenario: Optional[PathLike] = None) -> "RunReport":
+        """Run the spec on ``request`` to quiescence, as ``roar-verify run`` does (or, with a
+        ``scenario``, on the reference robot as ``roar-verify simulate`` does).
+
+        ``faults`` are ``NAME``, ``NAME:K`` or ``NAME=OUTCOME`` (docs/spec-language.md, Faults);
+        on the robot, scenario fault points too. A fault that matched no call is an error with
+        ``strict_faults`` (the command line's behaviour); otherwise it is listed in
+        ``RunReport.unused_faults``: a generated fault schedule may name calls a run never makes.
+        """
+        from ..roar.run import parse_fault
+        if scenario is not None:
+            return self._simulate(request, Path(scenario), seed, list(faults), max_steps, strict_faults)
+        given = [f if not isinstance(f, str) else parse_fault(f) for f in faults]
+        wanted = list(dict.fromkeys(given))
+        model = self.compile(request, "python")
+        res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self.registry(), fs, fair),
+                                    wanted, strict_faults)
+        return RunReport(self.name, request, seed, tuple(str(f) for f in wanted), res, max_steps,
+                         tuple(str(f) for f in unused))
+
+    def _simulate(self, request: str, scenario: Path, seed: int, faults: list, max_steps: int,
+                  strict_faults: bool) -> "RunReport":
+        from ..roar.compile import compile_spec
+        from ..robot.binding import load_robot_binding
+        from ..robot.commands import split_faults
+        from ..robot.scenario import load_scenario
+        from ..robot.sim import simulate
+        if self.path is None:
+            raise RoarError("a spec given as text has no functional-layer module to bind to the robot")
+        sc = load_scenario(scenario)
+        binding = load_robot_binding(self.path, self.functional)
+        model = compile_spec(self.ast, request, registry=binding.robot, functional="python")
+        world, prims = split_faults([str(f) for f in faults], sc, model)
+        wanted = list(dict.fromkeys(prims))
+        sim_box: list = []
+
+        def go(fs):
+            sim = simulate(model, load_robot_binding(self.path, self.functional).robot, sc, seed=seed,
+                           faults=world, prim_faults=fs, max_steps=max_steps)
+            sim_box[:] = [sim]
+            return sim.run
+
+        res, unused = _run_tolerant(go, wanted, strict_faults)
+        return RunReport(self.name, request, seed, tuple(world) + tuple(str(f) for f in wanted), res, max_steps,
+                         tuple(str(f) for f in unused), robot=sim_box[0], scenario=sc, scenario_path=scenario)
+
+    # -- exploring ---------------------------------------------------------------------
+    def explore(self, request: str, properties: Sequence[str] = ("deadlock", "livelock"), *,
+                never: Sequence[str] = (), progress: Sequence[str] = (), sequence_recipes: Sequence[str] = (),
+                budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None) -> "Exploration":
+        """Explore every interleaving and every declared outcome of the functional layer, as a
+        job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property."""
+        from ..explore.jobs import Job, PropertySpec
+        props = _properties(properties, never, ROAR_PROPERTIES)
+        spec_path = self._file()
+        ps = PropertySpec(check=props, progress=list(progress), sequence_recipes=list(sequence_recipes))
+        pos = _caller_pos()
+        ps.never = [(p, pos) for p in never]
+        for r in sequence_recipes:
+            if not isinstance(r, str) or r.count(".") != 2:
+                raise RoarError(f"sequence_recipes are named 'agent.task.recipe', not {r!r}", pos)
+        job = Job(path=spec_path, name=name or _job_name(self.name, request), model=None, props=ps,
+                  budget=as_budget(budget), reduction=reduction, spec=spec_path, request=request,
+                  functional=self.functional)
+        return _explore(job)
+
+    def _file(self) -> Path:
+        if self.path is None:
+            raise RoarError(f"{self.name}: a spec built from a tree has no file to explore; use AgentSpec.from_text")
+        return self.path
+
+    # -- on the robot --------------------------------------------------------------------
+    def conform(self, request: str, scenario: PathLike, *, runs: int = 3, seed: int = 0, faults: Sequence[str] = (),
+                random_faults: bool = True, max_steps: int = 200_000) -> Any:
+        """``roar-verify conform``: seeded robot runs, each result classified into a declared outcome
+        and each run replayed on the model; returns the robot's ``ConformReport`` (``.sound``,
+        ``.lines()``)."""
+        from ..roar.compile import compile_spec
+        from ..robot.binding import load_robot_binding
+        from ..robot.commands import split_faults
+        from ..robot.conform import conform
+        from ..robot.scenario import load_scenario
+        if runs < 1:
+            raise RoarError(f"runs must be at least 1, not {runs}")
+        sc = load_scenario(Path(scenario))
+        binding = load_robot_binding(self._file(), self.functional)
+        model = compile_spec(self.ast, request, registry=binding.robot, functional="python")
+        world, prims = split_faults(list(faults), sc, model)
+        if prims:
+            raise RoarError("conform draws the scenario's fault points; primitive faults "
+                            f"({', '.join(map(str, prims))}) are not allowed here")
+        return conform(self.ast, request, model, binding, sc, runs=runs, seed=seed, always=world,
+                       random_faults=random_faults, max_steps=max_steps, spec_name=self.name)
+
+
+def _run_model(model: "CompiledModel", seed: int, max_steps: int, registry: Optional["Registry"], faults: list,
+               fair: bool) -> "RunResult":
+    from ..roar.run import run_model
+    return run_model(model, seed=seed, max_steps=max_steps, registry=registry, faults=faults, fair=fair)
+
+
+_UNUSED = re.compile(r"^--fault (.*): no such call happened in this run")
+
+
+def _run_tolerant(go, faults: list, strict: bool):
+    """Run with ``faults``; unless ``strict``, a fault that matched no call is dropped (the run is
+    the same without it: it never changed an answer) and returned as unused."""
+    try:
+        return go(faults), []
+    except RoarError as exc:
+        m = _UNUSED.match(exc.message)
+        if strict or m is None:
+            raise
+        names = set(m.group(1).split(", "))
+        unused = [f for f in faults if str(f) in names]
+        if not unused:
+            raise
+        return go([f for f in faults if f not in unused]), unused
+
+
+def _job_name(spec_name: str, request: str) -> str:
+    stem = Path(spec_name.strip("<>")).stem or "spec"
+    return f"{stem}: {request}"
+
+
+def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple) -> list[str]:
+    if isinstance(properties, str):
+        properties = [properties]
+    out: list[str] = []
+    for p in properties:
+        if p not in allowed:
+            raise RoarError(f"unknown property {p!r}; expected one of: {', '.join(allowed)}", _caller_pos())
+        if p not in out:
+            out.append(p)
+    if never and "invariant" not in out:
+        out.append("invariant")
+    if "invariant" in out and not never:
+        raise RoarError("property 'invariant' needs patterns: never=[\"...\"]", _caller_pos())
+    if not out:
+        raise RoarError("nothing to check: name at least one property", _caller_pos())
+    return out
+
+
+def _explore(job) -> "Exploration":
+    from ..explore.check import run_job
+    return Exploration(run_job(job))
+
+
+# ---------------------------------------------------------------------------- runs
+
+
+@dataclass
+class RunReport:
+    """One run of a spec on a request: its outcome, ROAR-level events and final values.
+
+    ``str(report)`` is the trace ``roar-verify run`` prints (``simulate`` on the robot).
+    """
+
+    spec: str
+    request: str
+    seed: int
+    faults: tuple[str, ...]
+    result: "RunResult"
+    max_steps: int
+    unused_faults: tuple[str, ...] = ()
+    robot: Any = None        # the robot's SimResult, for a run on a scenario
+    scenario: Any = None     # its Scenario
+    scenario_path: Optional[Path] = None
+
+    @property
+    def outcome(self) -> str:
+        """The request's final state: success, failure, running, paused, ... ("unfinished" at the start)."""
+        return self.result.outcome
+
+    @property
+    def ok(self) -> bool:
+        return self.result.ok
+
+    @property
+    def quiescent(self) -> bool:
+        return self.result.quiescent
+
+    @property
+    def events(self) -> list["RoarEvent"]:
+        return self.result.events
+
+    @property
+    def final(self) -> dict[str, object]:
+        """Every variable's final value, keyed ``agent::var``."""
+        return self.result.final
+
+    @property
+    def error_context(self) -> list[str]:
+        return self.result.error_context
+
+    @property
+    def clf_steps(self) -> int:
+        return len(self.result.steps)
+
+    def format(self, verbose: bool = False) -> str:
+        """The run as the command line prints it; ``verbose`` adds each event's CLF rule."""
+        rules = [s[0] for s in self.result.steps]
+        faults = f", faults {', '.join(self.faults)}" if self.faults else ""
+        lines = []
+        if self.robot is not None:
+            return self._format_robot(verbose, faults)
+        lines.append(f"{self.spec}: request {self.request}{faults}, seed {self.seed}")
+        for ev in self.events:
+            rule = f"  ({rules[ev.step - 1]})" if verbose else ""
+            lines.append(f"{ev.step:>5} {ev.agent:<12} {ev.text}{rule}")
+        end = "quiescent" if self.quiescent else f"stopped after {self.max_steps} steps"
+        lines.append(f"request {self.outcome} after {self.clf_steps} CLF steps ({end})")
+        lines += [f"  error context: {line}" for line in self.error_context]
+        if self.unused_faults:
+            lines.append(f"  faults that matched no call: {', '.join(self.unused_faults)}")
+        return "\n".join(lines)
+
+    def _format_robot(self, verbose: bool, faults: str) -> str:
+        from ..trace.render import event_rows, print_events
+        res = self.robot
+        buf = io.StringIO()
+        console = _console(buf)
+        console.print(f"{self.spec}: request {self.request} on scenario {self.scenario.name}, seed {self.seed}"
+                      + faults)
+        rules = [st.rule for st in res.run.steps.raw]
+        print_events(console, event_rows(res.events, res.times, res.poses, rules), verbose=verbose)
+        x, y, th = res.robot.world.base.pose
+        console.print(f"request {res.outcome} at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF steps "
+                      f"({res.end}); robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
+        for e in res.run.error_context:
+            console.print(f"  error context: {e}")
+        return buf.getvalue().rstrip("\n")
+
+    def __str__(self) -> str:
+        return self.format()
+
+    def __repr__(self) -> str:   # short: pytest shows it under a failed `assert run.ok, run`
+        return f"<run of {self.request!r}: {self.outcome} after {self.clf_steps} CLF steps>"
+
+    def value(self, var: str) -> object:
+        """The final value of ``agent::var``."""
+        if var not in self.final:
+            raise RoarError(f"no variable {var!r}; the variables are: {', '.join(sorted(self.final))}")
+        return self.final[var]
+
+    def save_trace(self, path: PathLike) -> Path:
+        """Write the run as a JSON Lines trace (the format of ``roar-verify run --trace``)."""
+        from ..roar.commands import write_run_trace
+        p = Path(path)
+        if self.robot is not None:
+            from ..robot.commands import spec_files
+            from ..robot.report import write_robot_trace
+            write_robot_trace(p, self.robot, self.spec, self.request, str(self.scenario_path),
+                              spec_files(self.result.model.spec))
+        else:
+            write_run_trace(p, self.result, self.spec, self.request, self.seed, list(self.faults))
+        return p
+
+
+# ---------------------------------------------------------------------------- exploration
+
+
+class Counterexample:
+    """A counterexample of one property: a path to a bad state, or a lasso (livelock)."""
+
+    def __init__(self, exploration: "Exploration", prop: str):
+        self.exploration = exploration
+        self.prop = prop
+        self.verdict = exploration.verdicts[prop]
+        assert self.verdict.counterexample is not None
+        self._cx = self.verdict.counterexample
+
+    @property
+    def kind(self) -> str:
+        """'path' or 'lasso'."""
+        return self._cx.kind
+
+    def __len__(self) -> int:
+        return self._cx.length()
+
+    @property
+    def steps(self) -> list[dict]:
+        """The steps as trace records (rule, consumed, produced, group, event, loop)."""
+        from ..explore.check import counterexample_steps
+        r = self.exploration.result
+        return counterexample_steps(r.graph, self.verdict, r)
+
+    @property
+    def events(self) -> Optional[list[list["RoarEvent"]]]:
+        """For a spec, the ROAR events of each step (None for a .clf model)."""
+        from ..explore.check import roar_events
+        return roar_events(self.exploration.result, self.verdict)
+
+    @property
+    def trace(self) -> Optional[Path]:
+        """Where the counterexample was saved (:meth:`save`), if it was."""
+        return getattr(self.exploration.result, "saved", {}).get(self.prop)
+
+    def save(self, folder: PathLike) -> Path:
+        """Write the replayable trace (``roar-verify replay``) into ``folder``; its path is printed with it."""
+        from ..explore.check import save_counterexample
+        r = self.exploration.result
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        path = save_counterexample(r, self.prop, folder)
+        saved = dict(getattr(r, "saved", {}) or {})
+        saved[self.prop] = path
+        r.saved = saved
+        return path
+
+    def format(self, verbose: bool = False) -> str:
+        """The verdict line and the counterexample, as ``roar-verify check`` prints them."""
+        from ..explore.commands import _print_cx
+        buf = io.StringIO()
+        console = _console(buf)
+        v = self.verdict
+        console.print(f"  {self.prop}: {v.status} — {v.message}")
+        _print_cx(console, self.exploration.result, self.prop, verbose)
+        return buf.getvalue().rstrip("\n")
+
+    def __str__(self) -> str:
+        return self.format()
+
+    def __repr__(self) -> str:
+        return f"<{self.prop} counterexample: {self.kind} of {len(self)} steps>"
+
+
+class Exploration:
+    """The result of exploring a model: a verdict per property, statistics, counterexamples."""
+
+    def __init__(self, result: "JobResult"):
+        self.result = result
+
+    @property
+    def name(self) -> str:
+        return self.result.job.name
+
+    @property
+    def verdicts(self) -> dict[str, "Verdict"]:
+        return self.result.verdicts
+
+    def verdict(self, prop: str) -> "Verdict":
+        if prop not in self.verdicts:
+            raise RoarError(f"property {prop!r} was not checked; checked: {', '.join(self.verdicts)}")
+        return self.verdicts[prop]
+
+    def status(self, prop: str) -> str:
+        """holds, violated or incomplete."""
+        return self.verdict(prop).status
+
+    def holds(self, prop: str) -> bool:
+        return self.verdict(prop).status == "holds"
+
+    def violated(self, prop: str) -> bool:
+        return self.verdict(prop).status == "violated"
+
+    def counterexample(self, prop: str) -> Optional[Counterexample]:
+        return Counterexample(self, prop) if self.verdict(prop).counterexample is not None else None
+
+    @property
+    def states(self) -> int:
+        return self.result.graph.n_states
+
+    @property
+    def transitions(self) -> int:
+        return self.result.graph.n_edges
+
+    @property
+    def complete(self) -> bool:
+        """The whole reachable state space was explored."""
+        return bool(self.result.graph.complete)
+
+    @property
+    def seconds(self) -> float:
+        return self.result.seconds
+
+    @property
+    def backend(self) -> str:
+        return self.result.backend
+
+    def save_counterexamples(self, folder: PathLike) -> dict[str, Path]:
+        """Save every counterexample's trace into ``folder``; property -> path."""
+        out = {}
+        for p in self.verdicts:
+            cx = self.counterexample(p)
+            if cx is not None:
+                out[p] = cx.save(folder)
+        return out
+
+    def format(self, verbose: bool = False) -> str:
+        """Statistics, then each verdict with its counterexample, as ``roar-verify check`` prints a job."""
+        g = self.result.graph
+        lines = [f"{self.name}  ({g.n_states:,} states, {g.n_edges:,} transitions, {self.seconds:.2f} s, "
+                 f"backend {self.backend})"]
+        for p, v in self.verdicts.items():
+            cx = self.counterexample(p)
+            lines.append(cx.format(verbose) if cx is not None else f"  {p}: {v.status} — {v.message}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.format()
+
+    def __repr__(self) -> str:
+        vs = ", ".join(f"{p} {v.status}" for p, v in self.verdicts.items())
+        return f"<exploration of {self.name}: {vs}; {self.states:,} states>"
+
+
+# ---------------------------------------------------------------------------- CLF models
+
+
+@dataclass
+class ClfRun:
+    """A committed-choice run of a CLF program from one of its ``#exec`` start states."""
+
+    rules: list[str]              # the rule of each step
+    quiescent: bool
+    state: list[str]              # the final context, one hypothesis a line
+    seed: Optional[int] = 0
+
+    @property
+    def steps(self) -> int:
+        return len(self.rules)
+
+    def format(self) -> str:
+        lines = [f"{i:>5}. {r}" for i, r in enumerate(self.rules, 1)]
+        end = "quiescent" if self.quiescent else "stopped at the step bound"
+        lines.append(f"{self.steps} steps ({end}); final state: {'; '.join(self.state)}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.format()
+
+
+class ClfModel:
+    """A CLF program (Celf's language) with its ``#exec`` start states."""
+
+    def __init__(self, path: Path, *, text: Optional[str] = None, start: int = 1, name: Optional[str] = None):
+        self.path = Path(path)
+        self.text = text
+        self.start = start
+        self.name = name or str(self.path)
+        self._program: Optional["Program"] = None
+
+    @classmethod
+    def from_text(cls, text: str, *, name: str = "model", start: Optional[int] = None) -> "ClfModel":
+        """A program given as text (written to a scratch file: the explorer reads files);
+        ``start`` defaults to its last ``#exec``."""
+        path = _scratch_file(text, name, ".clf")
+        m = cls(path, text=text, name=f"<{name}>")
+        m.program  # type-check now: a bad program is an error here, not at first use
+        m.start = start if start is not None else max(1, m.starts)
+        return m
+
+    def __repr__(self) -> str:
+        if self.text is not None:
+            return f"ClfModel.from_text({_triple_quoted(self.text)})"
+        return f"<ClfModel {self.name}>"
+
+    def _repr_pretty_(self, p: Any, cycle: bool) -> None:
+        p.text(repr(self))
+
+    @property
+    def program(self) -> "Program":
+        if self._program is None:
+            from ..clf.program import Program
+            self._program = Program.from_file(self.path)
+        return self._program
+
+    @property
+    def starts(self) -> int:
+        """How many ``#exec`` directives (start states) the program has."""
+        from ..clf.signature import ExecDirective
+        return sum(1 for d in self.program.sig.directives if isinstance(d, ExecDirective))
+
+    def start_context(self, start: Optional[int] = None):
+        """A fresh context of start state ``start`` (counted from 1, as in a job's ``start``)."""
+        from ..clf.signature import ExecDirective
+        k = start if start is not None else self.start
+        execs = [d for d in self.program.sig.directives if isinstance(d, ExecDirective)]
+        if not 1 <= k <= len(execs):
+            raise RoarError(f"{self.name}: start {k} but the program has {len(execs)} #exec directive(s)")
+        return self.program.start_context(execs[k - 1].start)
+
+    def run(self, *, start: Optional[int] = None, seed: Optional[int] = 0, max_steps: int = 100_000,
+            fair: bool = False) -> ClfRun:
+        """Committed choice from a start state to quiescence (or ``max_steps``)."""
+        from ..clf.query import show_context, with_big_stack
+        ctx = self.start_context(start)
+        rules: list[str] = []
+
+        def go():
+            return self.program.run(ctx, max_steps=max_steps, seed=seed, fair=fair,
+                                    on_step=lambda step, _c: rules.append(step.rule))
+
+        _n, quiescent = with_big_stack(go)
+        return ClfRun(rules, quiescent, show_context(ctx), seed)
+
+    def explore(self, properties: Sequence[str] = ("deadlock",), *, start: Optional[int] = None,
+                progress: Sequence[str] = (), fairness: str = "first-argument", accept: Optional[str] = None,
+                never: Sequence[str] = (), budget: BudgetLike = None, backend: str = "auto",
+                reduction: bool = False, name: Optional[str] = None) -> Exploration:
+        """Explore every interleaving from a start state (docs/checking.md)."""
+        from ..explore.jobs import Job, PropertySpec
+        props = _properties(properties, never, CLF_PROPERTIES)
+        if fairness not in ("first-argument", "rule", "none"):
+            raise RoarError(f"fairness must be 'first-argument', 'rule' or 'none', not {fairness!r}", _caller_pos())
+        if backend not in ("auto", "ground", "general"):
+            raise RoarError(f"backend must be 'auto', 'ground' or 'general', not {backend!r}", _caller_pos())
+        pos = _caller_pos()
+        ps = PropertySpec(check=props, progress=list(progress), fairness=fairness, accept=accept,
+                          never=[(p, pos) for p in never], sources=[str(pos.file)] if accept else [])
+        job = Job(path=self.path, name=name or Path(self.name.strip("<>")).stem, model=self.path,
+                  start=start if start is not None else self.start, props=ps, budget=as_budget(budget),
+                  backend=backend, reduction=reduction)
+        return _explore(job)

@@ -1,0 +1,146 @@
+"""ROAR runs as TCA task trees: tca-check on the project's own traces.
+
+* every bundled spec's ``run --trace`` is a task tree that conforms (and is not empty);
+* the ``ordered_pick`` counterexample breaks SeqAch, naming the two subtrees;
+* a trace with no task-tree message is an error, not a pass;
+* the explorer's sequential-achievement monitor and the TCA check agree on random paths
+  through the explored state spaces of the seeded faulty models (an independent oracle
+  for each: a monitor kept in the states, the axioms and theorem in Z3 on the trace).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from roar_formal.cli import main
+from roar_formal.explore.check import run_job, save_counterexample
+from roar_formal.explore.jobs import load_job
+from roar_formal.roar.explore import path_events
+from roar_formal.tca.check import check_events, check_trace
+from roar_formal.tca.roar_runs import task_tree_events
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT / "models"
+
+RUNS = [
+    (MODELS / "demo_loco", "demo_loco::pos == demo_loco::goal where demo_loco::goal == 5"),
+    (MODELS / "spa_loop.roar", "exec::arrived == true where exec::goal == 7"),
+    (MODELS / "mana_nav.roar", "locomotion::arrived == true where locomotion::gx == 3.0 && locomotion::gy == 4.0"),
+    (MODELS / "conflict.roar", "mission::done == true"),
+    (MODELS / "door_nav.roar", "base::arrived == true where base::gx == 9.0 && base::gy == 3.0"),
+    (MODELS / "pick_place.roar", "carrier::delivered == true"),
+]
+
+
+def cli(capsys, *argv):
+    code = 0
+    try:
+        main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(autouse=True)
+def _wide(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "400")
+    monkeypatch.setenv("NO_COLOR", "1")
+
+
+@pytest.mark.parametrize("spec,request_", RUNS, ids=[p.name.split(".")[0] for p, _r in RUNS])
+def test_every_bundled_run_is_a_conforming_task_tree(capsys, tmp_path, spec, request_):
+    trace = tmp_path / "run.jsonl"
+    assert cli(capsys, "run", spec, "-r", request_, "--trace", trace)[0] == 0
+    report = check_trace(trace)
+    kinds = {m.kind for m in report.tree.messages.values()}
+    assert report.ok, [v.explanation for v in report.violations]
+    assert "goal" in kinds and len(report.tree.messages) >= 2
+    if spec.name != "demo_loco":
+        assert "command" in kinds          # primitive calls are commands
+    code, out, err = cli(capsys, "tca-check", trace)
+    assert code == 0 and f"{len(report.tree.messages)} messages" in out and "no violations" in out
+
+
+def test_a_robot_run_is_a_task_tree_with_its_simulated_times(capsys, tmp_path):
+    trace = tmp_path / "robot.jsonl"
+    code, _out, err = cli(capsys, "simulate", MODELS / "pick_place.roar", "-s", MODELS / "scenarios" / "gripper.toml",
+                          "-r", "carrier::delivered == true", "--trace", trace)
+    assert code == 0, err
+    report = check_trace(trace)
+    assert report.ok and report.tree.declared        # make; make declares SeqAch
+    ends = [m.end for m in report.tree.messages.values() if m.end is not None]
+    assert max(ends) > 10                            # seconds of simulated time, not step numbers
+
+
+def test_the_ordered_pick_counterexample_breaks_sequential_achievement(capsys, tmp_path):
+    res = run_job(load_job(ROOT / "checker" / "ordered_pick.toml"))
+    trace = save_counterexample(res, "sequential-achievement", tmp_path)
+    code, out, err = cli(capsys, "tca-check", trace)
+    assert code == 1
+    report = check_trace(trace)
+    seq = [v for v in report.violations if v.rule == "seq_ach"]
+    assert len(seq) == 1 and not [v for v in report.violations if v.rule != "seq_ach"]
+    a, b = seq[0].messages[:2]
+    assert report.tree.messages[a].kind == report.tree.messages[b].kind == "goal"
+    assert f"SeqAch({a}, {b})" in out
+
+
+def test_a_trace_without_task_tree_messages_is_an_error(capsys, tmp_path):
+    trace = tmp_path / "empty.jsonl"
+    trace.write_text('{"trace": "roar-formal", "version": 1, "kind": "roar-run"}\n'
+                     '{"step": 1, "rule": "r", "consumed": [], "produced": [], "event": null}\n')
+    code, out, err = cli(capsys, "tca-check", trace)
+    assert code == 2 and "no task-tree message" in err and f"{trace}:1:1" in err
+
+
+# ---------------------------------------------------------------- the two checks agree
+
+
+_JOBS: dict = {}
+
+
+def explored(name: str):
+    if name not in _JOBS:
+        res = run_job(load_job(ROOT / "checker" / f"{name}.toml"))
+        model, start, explorer = res.roar
+        out: dict = {}
+        for e in range(res.graph.n_edges):
+            out.setdefault(res.graph.src[e], []).append(e)
+        pairs = [[p.a, p.b] for p in explorer.system.pairs]
+        _JOBS[name] = (res, model, start, explorer, out, pairs)
+    return _JOBS[name]
+
+
+@pytest.mark.parametrize("name", ["ordered_pick", "ordered_pick_fixed"])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_the_monitor_and_tca_check_agree_on_every_path(name, data):
+    res, model, start, explorer, out, pairs = explored(name)
+    graph, system = res.graph, explorer.system
+    s, edges = 0, []
+    for _ in range(data.draw(st.integers(1, 80), label="length")):
+        choices = out.get(s)
+        if not choices:
+            break
+        e = data.draw(st.sampled_from(sorted(choices)), label="edge")
+        edges.append(e)
+        s = graph.dst[e]
+    visited = [0] + [graph.dst[e] for e in edges]
+    monitor = any(system.violates_sequence(explorer.states[v]) is not None for v in visited)
+    events = path_events(model, start, [explorer.steps[e] for e in edges])
+    per: list = [[] for _ in edges]
+    for ev in events:
+        per[ev.step - 1].append(ev.as_json())
+    records = []
+    for i, (e, evs) in enumerate(zip(edges, per), 1):
+        rec = dict(graph.describe_edge(e), step=i)
+        rec["event"] = (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None
+        records.append(rec)
+    report = check_events(task_tree_events({"trace": "roar-formal", "seq_pairs": pairs}, records))
+    seq = [v for v in report.violations if v.rule == "seq_ach"]
+    assert bool(seq) == monitor, (monitor, [v.explanation for v in report.violations])
+    assert not [v for v in report.violations if v.rule != "seq_ach"], [v.explanation for v in report.violations]
