@@ -83,7 +83,7 @@ class _Timer:
 
 def _breakdown(model, binding, sc, faults) -> dict:
     from roar_formal.clf.forward import Run
-    from roar_formal.robot import planning, robot as robot_mod, world as world_mod
+    from roar_formal.robot import robot as robot_mod, world as world_mod
     t = _Timer()
     t.wrap(world_mod.World, "step", "physics (pymunk, wheels, doors)")
     t.wrap(world_mod.Lidar, "scan", "lidar (ray queries)")

@@ -14,12 +14,6 @@ from rich.markup import escape
 from ..console import make_console
 from ..errors import RoarError
 
-_KIND_STYLE = {
-    "sent": "cyan", "state": "bold", "tasks": "magenta", "recipe": "magenta", "recipe-end": "magenta",
-    "primitive-start": "blue", "primitive-end": "blue", "write": "green", "pause": "yellow",
-    "resume": "yellow", "abort": "yellow", "conflict": "red", "calling-context": "red",
-}
-
 
 def functional_module(spec_path: Path, given: Optional[Path]) -> Optional[Path]:
     """The functional-layer module of a spec: ``--functional FILE``, else ``SPEC.py`` next to a
@@ -105,12 +99,9 @@ def register(app: typer.Typer) -> None:
 
         res = run_model(model, seed=seed, max_steps=max_steps, registry=reg, faults=faults, fair=fair)
         rules = [s[0] for s in res.steps]
-        if not as_json:
-            for ev in res.events:
-                style = _KIND_STYLE.get(ev.kind, "default")
-                rule = f"  [dim]({escape(rules[ev.step - 1])})[/]" if verbose else ""
-                console.print(f"[dim]{ev.step:>5}[/] {escape(ev.agent):<12} [{style}]{escape(ev.text)}[/]{rule}",
-                              soft_wrap=True, markup=True)
+        if not as_json:   # the one step table of run, simulate and replay (trace/render.py)
+            from ..trace.render import event_rows, print_events
+            print_events(console, event_rows(res.events, rules=rules), verbose=verbose)
         if trace is not None:
             _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault))
         if as_json:

@@ -14,8 +14,8 @@ __all__ = ["register", "split_faults", "prepare"]
 
 
 def _console():
-    from rich.console import Console
-    return Console(highlight=False, emoji=False)
+    from ..console import make_console
+    return make_console()
 
 
 def split_faults(names: list[str], scenario, model=None) -> tuple[list[str], list]:

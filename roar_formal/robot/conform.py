@@ -32,7 +32,6 @@ from typing import Callable, Optional
 
 from ..clf.printer import show
 from ..clf.terms import Root
-from ..errors import RoarError
 from .activity import CallResult
 from .sim import classify
 

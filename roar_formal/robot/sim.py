@@ -24,7 +24,6 @@ the scenario's horizon, or after ``max_steps`` CLF steps.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from collections.abc import Sequence
 from typing import Callable, Optional
@@ -34,7 +33,7 @@ from ..clf.printer import show
 from ..clf.terms import Const, Root, const
 from ..errors import RoarError
 from ..roar.compile import CompiledModel
-from ..roar.functional import Outcome, Registry
+from ..roar.functional import Registry
 from ..roar.run import (Fault, Narrator, Resolver, RoarEvent, RunResult, Values, collect_result, list_items,
                         site_of)
 from .activity import Activity, CallResult

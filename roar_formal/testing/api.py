@@ -343,8 +343,8 @@ def _run_tolerant(go, faults: list, strict: bool):
 
 
 def _job_name(spec_name: str, request: str) -> str:
-    stem = Path(spec_name.strip("<>")).stem or "spec"
-    return f"{stem}: {request}"
+    """The spec's file stem: it names the counterexample traces (``pick.deadlock.jsonl``)."""
+    return re.sub(r"[^A-Za-z0-9_-]", "_", Path(spec_name.strip("<>")).stem) or "spec"
 
 
 def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple) -> list[str]:
@@ -614,7 +614,9 @@ class Exploration:
     def format(self, verbose: bool = False) -> str:
         """Statistics, then each verdict with its counterexample, as ``roar-verify check`` prints a job."""
         g = self.result.graph
-        lines = [f"{self.name}  ({g.n_states:,} states, {g.n_edges:,} transitions, {self.seconds:.2f} s, "
+        job = self.result.job
+        what = f"{self.name}: request {job.request}" if job.is_roar else self.name
+        lines = [f"{what}  ({g.n_states:,} states, {g.n_edges:,} transitions, {self.seconds:.2f} s, "
                  f"backend {self.backend})"]
         for p, v in self.verdicts.items():
             cx = self.counterexample(p)

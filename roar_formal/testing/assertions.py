@@ -63,12 +63,22 @@ class TestSettings:
         return folder
 
 
-_SETTINGS: contextvars.ContextVar[TestSettings] = contextvars.ContextVar("roar_formal_test_settings",
-                                                                          default=TestSettings())
+_SETTINGS: contextvars.ContextVar[Optional[TestSettings]] = contextvars.ContextVar("roar_formal_test_settings",
+                                                                                    default=None)
 
 
 def current_settings() -> TestSettings:
-    return _SETTINGS.get()
+    """The settings of :func:`using_settings`, else the pytest plugin's for the running test, else
+    the defaults."""
+    s = _SETTINGS.get()
+    if s is not None:
+        return s
+    from ._context import PLUGIN
+    given = PLUGIN.get()
+    if given is None:
+        return TestSettings()
+    budget, traces = given
+    return TestSettings(replace(DEFAULT_BUDGET, **budget), traces())
 
 
 @contextlib.contextmanager

@@ -86,11 +86,9 @@ def _marker_budget(item: pytest.Item) -> dict:
     return out
 
 
-def _settings(item: pytest.Item):
-    from dataclasses import replace
-    from .assertions import DEFAULT_BUDGET, TestSettings
-    budget = replace(DEFAULT_BUDGET, **{**item.config.stash.get(_DEFAULT_KEY, {}), **_marker_budget(item)})
-    return TestSettings(budget=budget, traces=_traces(item.config))
+def _budget_kwargs(item: pytest.Item) -> dict:
+    """--roar-budget, overridden key by key by the test's marker."""
+    return {**item.config.stash.get(_DEFAULT_KEY, {}), **_marker_budget(item)}
 
 
 def _traces(config: pytest.Config) -> Path:
@@ -107,31 +105,21 @@ def _traces(config: pytest.Config) -> Path:
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
-    """Run the test with its budget and trace folder as the helpers' settings."""
-    if not _uses_roar(item):
+    """Run the test with its budget and trace folder as the assertion helpers' settings."""
+    from ._context import PLUGIN
+    token = PLUGIN.set((_budget_kwargs(item), lambda: _traces(item.config)))
+    try:
         return (yield)
-    from .assertions import using_settings
-    with using_settings(_settings(item)):
-        return (yield)
-
-
-def _uses_roar(item: pytest.Item) -> bool:
-    """Does the test's module use roar-formal at all? (Other projects' tests pay nothing.)"""
-    mod = getattr(item, "module", None)
-    return mod is None or any(getattr(v, "__module__", "") and str(getattr(v, "__module__", "")).startswith(
-        "roar_formal") for v in vars(mod).values()) or "roar_formal" in str(vars(mod).keys()) \
-        or _imports_roar(mod)
-
-
-def _imports_roar(mod: Any) -> bool:
-    import sys
-    return "roar_formal.testing.assertions" in sys.modules
+    finally:
+        PLUGIN.reset(token)
 
 
 @pytest.fixture
 def roar_budget(request: pytest.FixtureRequest):
     """The exploration budget of this test (marker, else --roar-budget, else the default)."""
-    return _settings(request.node).budget
+    from dataclasses import replace
+    from .assertions import DEFAULT_BUDGET
+    return replace(DEFAULT_BUDGET, **_budget_kwargs(request.node))
 
 
 @pytest.fixture(scope="session")
