@@ -423,6 +423,14 @@ class Narrator:
                 agent, call = self.calls.pop(f.args[0])
                 out.append(RoarEvent(i, "primitive-end", agent, f"{call} failed",
                                      {"failed": True, "call": self.call_ids.get(f.args[0])}))
+        # a call withdrawn: its pending fact consumed with no answer made (the recipe was stopped)
+        answered = {g.args[-1] for fam in ("return", "callfail") for g in by(fam, prod)}
+        for f in by("pending", consumed):
+            d = f.args[2]
+            if d in self.calls and d not in answered:
+                agent, call = self.calls.pop(d)
+                out.append(RoarEvent(i, "primitive-end", agent, f"{call} withdrawn (the recipe was stopped)",
+                                     {"withdrawn": True, "call": self.call_ids.get(d)}))
         # variable writes
         before = {f.args[0]: f.args[1] for f in by("contains", consumed)}
         site = m.sites.get(site_of(rule))

@@ -257,7 +257,7 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
         return 0 if res.realised else 1
     if header.get("kind") != TRACE_KIND:
         raise RoarError(f"{trace}: not a robot trace (kind {header.get('kind')!r}); a counterexample replays on the "
-                        f"engine without --model SPEC, or on the robot with --on-robot SCENARIO")
+                        f"engine with --model alone, or on the robot with --on-robot SCENARIO --model SPEC")
     from ..roar.parser import load_spec
     from .binding import load_robot_binding
     from .conform import replay_on_model

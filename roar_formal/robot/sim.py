@@ -209,6 +209,7 @@ class _Sim:
         self.by_dest: dict = {}         # dest term -> CallRecord
         self.inflight: dict = {}        # robot handle -> (pending fact, CallRecord)
         self.sleepers: list = []        # (wake time, order, ctl fact)
+        self._pose_at, self._pose = None, None
         self._order = 0
         self.now_fc = {fc for fc, (owner, name) in model.functions.items() if owner is None and name == "now"}
         for _mode, f, _n in self.ctx.facts():
@@ -221,8 +222,11 @@ class _Sim:
     def _record(self, step) -> int:
         i = len(self.steps) + 1
         self.steps.append(step)
-        self.times.append(self.robot.time)
-        self.poses.append(tuple(self.robot.world.base.pose))
+        now = self.robot.time
+        if now != self._pose_at:   # the pose changes only when the physics ran: read it once per instant
+            self._pose_at, self._pose = now, tuple(self.robot.world.base.pose)
+        self.times.append(now)
+        self.poses.append(self._pose)
         if step.rule in ("poll_sleep", "poll_wake"):   # timing: no ROAR event
             return i
         for ev in self.narrator.events(i, step):

@@ -398,7 +398,7 @@ def check_events(events: Iterable[Event]) -> CheckReport:
 
 def read_task_tree(path) -> list[Event]:
     """The task-tree events of a trace: a trace of the project (``run``, ``simulate``, a ``check``
-    counterexample) read as its ROAR task tree (roar_runs), or a file of TCA events as it is."""
+    counterexample) read as its ROAR task tree (roar_runs), plus any TCA event records in the file."""
     from ..trace.format import read_trace
     from .roar_runs import is_roar_trace, task_tree_events
     path = Path(path)
@@ -409,11 +409,12 @@ def read_task_tree(path) -> list[Event]:
         raise RoarError(f"cannot read trace: {exc.strerror}", Pos(str(path), 1, 1)) from None
     except UnicodeDecodeError as exc:
         raise RoarError(f"trace is not UTF-8 text: {exc.reason}", Pos(str(path), 1, 1)) from None
+    events = read_events(path)   # TCA records, wherever they are (they may share a ROAR trace)
     if '"roar-formal"' in first:
         header, steps = read_trace(path)
         if is_roar_trace(header):
-            return task_tree_events(header, steps, str(path))
-    return read_events(path)
+            return task_tree_events(header, steps, str(path)) + events
+    return events
 
 
 def check_trace(path) -> CheckReport:

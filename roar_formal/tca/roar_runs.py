@@ -74,6 +74,7 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
     by_emitter: dict[str, list[tuple[str, Optional[str], Fraction]]] = {}
     last_time = Fraction(0)
     recs = list(records)
+    timed = any(isinstance(r, dict) and isinstance(r.get("time"), (int, float)) for r in recs)
     for n, rec in enumerate(recs, 1):
         if not isinstance(rec, dict):
             continue
@@ -120,7 +121,12 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
         if m in starts:
             out.append(Mark("started", m, starts[m][0], starts[m][1]))
         if m in ends:
-            out.append(Mark("ended", m, ends[m][0], ends[m][1]))
+            t_end = ends[m][0]
+            if m in starts and t_end <= starts[m][0]:
+                # handled within one step (a constraint that already held): it ends within that
+                # step, before the next one (TCA's handling intervals are not empty)
+                t_end = starts[m][0] + (TICK / 2 if timed else Fraction(1, 2))
+            out.append(Mark("ended", m, t_end, ends[m][1]))
     out += _seq_ach(header, by_emitter, file)
     return out
 

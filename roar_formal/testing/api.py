@@ -149,8 +149,10 @@ def _console(buf: io.StringIO):
 
 
 def _triple_quoted(text: str) -> str:
+    """``text`` as a Python literal that shows its lines (the backslash after the opening quotes
+    keeps the first line out of the string)."""
     body = text.replace("\\", "\\\\").replace("'''", "\\'\\'\\'")
-    return "'''\n" + body + ("" if body.endswith("\n") else "\n") + "'''"
+    return "'''\\\n" + body + "'''"
 
 
 # ---------------------------------------------------------------------------- agent specs
@@ -422,37 +424,31 @@ class RunReport:
         return len(self.result.steps)
 
     def format(self, verbose: bool = False) -> str:
-        """The run as the command line prints it; ``verbose`` adds each event's CLF rule."""
-        rules = [s[0] for s in self.result.steps]
-        faults = f", faults {', '.join(self.faults)}" if self.faults else ""
-        lines = []
-        if self.robot is not None:
-            return self._format_robot(verbose, faults)
-        lines.append(f"{self.spec}: request {self.request}{faults}, seed {self.seed}")
-        for ev in self.events:
-            rule = f"  ({rules[ev.step - 1]})" if verbose else ""
-            lines.append(f"{ev.step:>5} {ev.agent:<12} {ev.text}{rule}")
-        end = "quiescent" if self.quiescent else f"stopped after {self.max_steps} steps"
-        lines.append(f"request {self.outcome} after {self.clf_steps} CLF steps ({end})")
-        lines += [f"  error context: {line}" for line in self.error_context]
-        if self.unused_faults:
-            lines.append(f"  faults that matched no call: {', '.join(self.unused_faults)}")
-        return "\n".join(lines)
-
-    def _format_robot(self, verbose: bool, faults: str) -> str:
+        """The run as the command line prints it (the step table of ``trace.render``);
+        ``verbose`` adds each event's CLF rule."""
         from ..trace.render import event_rows, print_events
-        res = self.robot
         buf = io.StringIO()
         console = _console(buf)
-        console.print(f"{self.spec}: request {self.request} on scenario {self.scenario.name}, seed {self.seed}"
-                      + faults)
-        rules = [st.rule for st in res.run.steps.raw]
-        print_events(console, event_rows(res.events, res.times, res.poses, rules), verbose=verbose)
-        x, y, th = res.robot.world.base.pose
-        console.print(f"request {res.outcome} at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF steps "
-                      f"({res.end}); robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
-        for e in res.run.error_context:
-            console.print(f"  error context: {e}")
+        faults = f", faults {', '.join(self.faults)}" if self.faults else ""
+        if self.robot is not None:
+            res = self.robot
+            console.print(f"{self.spec}: request {self.request} on scenario {self.scenario.name}, "
+                          f"seed {self.seed}{faults}")
+            rules = [st.rule for st in res.run.steps.raw]
+            print_events(console, event_rows(res.events, res.times, res.poses, rules), verbose=verbose)
+            x, y, th = res.robot.world.base.pose
+            console.print(f"request {res.outcome} at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF "
+                          f"steps ({res.end}); robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
+        else:
+            console.print(f"{self.spec}: request {self.request}{faults}, seed {self.seed}")
+            rules = [s[0] for s in self.result.steps]
+            print_events(console, event_rows(self.events, rules=rules), verbose=verbose)
+            end = "quiescent" if self.quiescent else f"stopped after {self.max_steps} steps"
+            console.print(f"request {self.outcome} after {self.clf_steps} CLF steps ({end})")
+        for line in self.error_context:
+            console.print(f"  error context: {line}")
+        if self.unused_faults:
+            console.print(f"  faults that matched no call: {', '.join(self.unused_faults)}")
         return buf.getvalue().rstrip("\n")
 
     def __str__(self) -> str:
@@ -558,6 +554,14 @@ class Exploration:
     @property
     def name(self) -> str:
         return self.result.job.name
+
+    @property
+    def title(self) -> str:
+        """What was explored: ``SPEC, request R`` or ``MODEL.clf`` (with its start when not the first)."""
+        job = self.result.job
+        if job.is_roar:
+            return f"{job.spec}, request {job.request}"
+        return str(job.model) + (f", start {job.start}" if job.start != 1 else "")
 
     @property
     def verdicts(self) -> dict[str, "Verdict"]:

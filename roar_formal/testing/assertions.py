@@ -133,14 +133,14 @@ def _verdict(res: Exploration, prop: str, allow_incomplete: bool) -> Exploration
         return res
     if v.status == "incomplete":
         raise RoarAssertionError(
-            f"{prop} not decided on {res.name}: {v.message}\n"
+            f"{prop} not decided on {res.title}: {v.message}\n"
             f"  a test passes only on a complete search: raise the budget with "
             f"@pytest.mark.roar_budget(max_states=..., max_seconds=...) or --roar-budget, "
             f"or pass allow_incomplete=True", res)
     cx = res.counterexample(prop)
     assert cx is not None
     trace = cx.save(current_settings().traces_folder())
-    raise RoarAssertionError(f"{prop} violated on {res.name}\n{cx.format()}", res, trace)
+    raise RoarAssertionError(f"{prop} violated on {res.title}\n{cx.format()}", res, trace)
 
 
 def assert_no_deadlock(target: Target, request: Optional[str] = None, *, budget: BudgetLike = None,

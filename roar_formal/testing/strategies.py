@@ -340,22 +340,21 @@ def fault_schedules(spec: AgentSpec, *, max_faults: int = 3, max_call: int = 3, 
     ``outcomes`` ``f:K=OUTCOME`` for the outcomes the functional layer declares. Shrinks towards
     the empty schedule, then one fault of the first call of the first function."""
     counts = Counter(f for _a, f in spec.functions())
-    names = [(a, f, f if counts[f] == 1 else f"{a}::{f}") for a, f in spec.functions()]
     reg = spec.registry() if outcomes else None
-    one = []
-    for agent, f, shown in names:
-        choices = [st.integers(1, max_call).map(lambda k, s=shown: f"{s}:{k}")]
+    faults: list[str] = []   # every fault the schedule may hold, simplest first (plain strings print well)
+    for k in range(1, max_call + 1):
+        for agent, f in spec.functions():
+            faults.append(f"{f if counts[f] == 1 else f'{agent}::{f}'}:{k}")
+    for agent, f in spec.functions():
+        shown = f if counts[f] == 1 else f"{agent}::{f}"
         if permanent:
-            choices.append(st.just(shown))
+            faults.append(shown)
         prim = reg.lookup(f, agent) if reg is not None else None
-        declared = [o.name for o in prim.outcomes] if prim is not None else []
-        if declared and prim is not None and prim.outcomes != _default_outcomes():
-            choices.append(st.tuples(st.integers(1, max_call), st.sampled_from(declared)).map(
-                lambda ko, s=shown: f"{s}:{ko[0]}={ko[1]}"))
-        one.append(st.one_of(choices))
-    if not one or max_faults == 0:
+        if prim is not None and prim.outcomes != _default_outcomes():
+            faults += [f"{shown}:{k}={o.name}" for k in range(1, max_call + 1) for o in prim.outcomes]
+    if not faults or max_faults == 0:
         return st.just([])
-    return st.lists(st.one_of(one), max_size=max_faults, unique=True)
+    return st.lists(st.sampled_from(faults), max_size=max_faults, unique=True)
 
 
 def _default_outcomes():

@@ -44,6 +44,15 @@ def _shown(value) -> str:
     return json.dumps(value, ensure_ascii=True) if isinstance(value, str) else json.dumps(str(value))
 
 
+_PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
+
+
+def _name(value) -> str:
+    """A step number or rule name read from a trace: as is when plain, else quoted."""
+    text = str(value) if isinstance(value, int) and not isinstance(value, bool) else value
+    return text if isinstance(text, str) and _PLAIN.fullmatch(text) else _shown(value)
+
+
 def _need_model(path, header: dict) -> RoarError:
     named = header.get("spec") or header.get("model")
     kind = "spec" if header.get("spec") else "model"
@@ -67,6 +76,10 @@ def _check_fingerprint(path, header: dict, given: dict, force: bool, notes: list
     if recorded[ALGORITHM] == given[ALGORITHM]:
         return
     what = differences(recorded, given) or ["the files differ"]
+    rec_fn = [k.split(":", 1)[1] for k in (recorded.get("files") or {}) if str(k).startswith("functional:")]
+    if rec_fn and not any(k.startswith("functional:") for k in given["files"]):
+        what.append(f"the trace was recorded with the functional-layer module {_shown(rec_fn[0])}: if it is one "
+                    "you trust, name it with --functional")
     if not force:
         raise RoarError(f"{path}: the model given with --model is not the one the trace was recorded on "
                         f"(fingerprint {given[ALGORITHM][:12]}, recorded {_shown(recorded[ALGORITHM][:12])})", None,
@@ -134,7 +147,7 @@ def replay(path: str | Path, on_step: Optional[Callable[[int, dict, Context], No
             loop_start = state
         want = (rec.get("consumed", []), rec.get("produced", []))
         if not all(isinstance(w, list) and all(isinstance(x, str) for x in w) for w in want):
-            raise RoarError(f"{path}: step {_shown(rec.get('step'))}: \"consumed\" and \"produced\" must be "
+            raise RoarError(f"{path}: step {_name(rec.get('step'))}: \"consumed\" and \"produced\" must be "
                             "lists of facts (strings)")
         nxt = None
         for succ in system.successors(state):
@@ -149,7 +162,7 @@ def replay(path: str | Path, on_step: Optional[Callable[[int, dict, Context], No
         if nxt is None:
             enabled = sorted({s.label for s in system.successors(state)})
             raise RoarError(
-                f"{path}: step {_shown(rec.get('step'))} ({_shown(rec.get('rule'))}) cannot be replayed: "
+                f"{path}: step {_name(rec.get('step'))} ({_name(rec.get('rule'))}) cannot be replayed: "
                 "no such enabled step",
                 None, [f"enabled rules here: {', '.join(enabled) or 'none (quiescent)'}",
                        "state: " + "; ".join(show_context(state))])

@@ -404,7 +404,7 @@ def test_reduction_keeps_the_deadlock_verdicts(tmp_path, spec, expect):
         final = explorer.states[v.counterexample.final_state]
         assert res.program.steps(final) == [] and not roar_final(final)  # quiescent in the full system
         trace = save_counterexample(res, "deadlock", tmp_path / "traces")
-        rr = big(replay, trace, None, res.job.spec)
+        rr = big(lambda: replay(trace, None, res.job.spec, functional=res.job.functional))
         assert rr.steps == v.counterexample.length() and rr.cycle_closes is None
         assert canonical_key(rr.states[-1]) == canonical_key(final)
 
@@ -436,7 +436,8 @@ def test_reduction_keeps_every_verdict_of_the_seeded_faults(tmp_path, name):
         assert v.status == full.verdicts[p].status, p
         if v.violated:
             _model, _start, explorer = res.roar
-            rr = big(replay, save_counterexample(res, p, tmp_path / "traces"), None, res.job.spec)  # on the enumerator
+            trace = save_counterexample(res, p, tmp_path / "traces")
+            rr = big(lambda: replay(trace, None, res.job.spec, functional=res.job.functional))  # on the enumerator
             assert rr.steps == v.counterexample.length()
             if v.counterexample.kind == "lasso":
                 assert rr.cycle_closes
@@ -471,7 +472,7 @@ def test_saved_counterexamples_replay_with_roar_events(tmp_path, name, prop, kin
             seen.add(x["kind"])
             assert x["agent"] and x["text"]
     assert kinds <= seen, seen
-    rr = big(replay, path, None, res.job.spec)
+    rr = big(lambda: replay(path, None, res.job.spec, functional=res.job.functional))
     assert rr.steps == len(records)
     assert rr.cycle_closes is (True if prop == "livelock" else None)
 

@@ -116,28 +116,33 @@ def explored(name: str):
 
 
 @pytest.mark.parametrize("name", ["ordered_pick", "ordered_pick_fixed"])
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_the_monitor_and_tca_check_agree_on_every_path(name, data):
     res, model, start, explorer, out, pairs = explored(name)
     graph, system = res.graph, explorer.system
-    s, edges = 0, []
+    # walk the graph, re-taking each edge from the concrete state reached so far: the graph's
+    # stored states are representatives (up to renaming), and a path's steps must share names
+    s, state, states, steps = 0, system.initial(), [system.initial()], []
     for _ in range(data.draw(st.integers(1, 80), label="length")):
         choices = out.get(s)
         if not choices:
             break
         e = data.draw(st.sampled_from(sorted(choices)), label="edge")
-        edges.append(e)
-        s = graph.dst[e]
-    visited = [0] + [graph.dst[e] for e in edges]
-    monitor = any(system.violates_sequence(explorer.states[v]) is not None for v in visited)
-    events = path_events(model, start, [explorer.steps[e] for e in edges])
-    per: list = [[] for _ in edges]
+        want = system.key(explorer.states[graph.dst[e]])
+        succ = next(x for x in system.successors(state) if x.label == graph.labels.names[graph.label[e]]
+                    and system.key(x.state) == want)
+        s, state = graph.dst[e], succ.state
+        states.append(state)
+        steps.append(succ.step)
+    monitor = any(system.violates_sequence(x) is not None for x in states)
+    events = path_events(model, start, steps)
+    per: list = [[] for _ in steps]
     for ev in events:
         per[ev.step - 1].append(ev.as_json())
     records = []
-    for i, (e, evs) in enumerate(zip(edges, per), 1):
-        rec = dict(graph.describe_edge(e), step=i)
+    for i, (step, evs) in enumerate(zip(steps, per), 1):
+        rec = dict(system.describe_step(step), step=i)
         rec["event"] = (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None
         records.append(rec)
     report = check_events(task_tree_events({"trace": "roar-formal", "seq_pairs": pairs}, records))

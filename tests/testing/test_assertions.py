@@ -1,0 +1,95 @@
+"""The assertion helpers: a failure is the printed counterexample and a replayable trace; budgets."""
+
+import pytest
+
+from roar_formal import Budget, RoarError, load, load_spec
+from roar_formal.testing import (RoarAssertionError, TestSettings, assert_invariant, assert_no_deadlock,
+                                 assert_no_livelock, assert_sequential_achievement, assert_succeeds,
+                                 current_settings, using_settings)
+from roar_formal.trace.format import read_trace
+
+
+@pytest.fixture
+def traces(tmp_path):
+    with using_settings(TestSettings(traces=tmp_path / "traces")):
+        yield tmp_path / "traces"
+
+
+def test_a_deadlock_fails_with_its_counterexample_and_a_trace(models, traces):
+    spec = load_spec(models / "faulty" / "mutual_make.roar")
+    with pytest.raises(RoarAssertionError) as e:
+        assert_no_deadlock(spec, "arm::started == true")
+    msg = str(e.value)
+    assert msg.splitlines()[0] == f"deadlock violated on {spec.path}, request arm::started == true"
+    assert "  deadlock: violated — deadlock reachable in 27 steps" in msg
+    assert "     18. door         make R2 to arm: arm::parked == true" in msg
+    assert "final state: arm.park.fold at 33:13 (wait(door::open == true, 100))" in msg
+    assert e.value.trace == traces / "mutual_make.deadlock.jsonl" and e.value.trace.is_file()
+    assert f"trace: {e.value.trace}  (roar-verify replay {e.value.trace} --model {spec.path})" in msg
+    header, steps = read_trace(e.value.trace)
+    assert header["property"] == "deadlock" and len(steps) == 27
+    assert e.value.exploration.violated("deadlock")
+    fixed = assert_no_deadlock(models / "faulty" / "mutual_make_fixed.roar", "arm::started == true")
+    assert fixed.holds("deadlock")
+
+
+def test_a_livelock_fails_with_its_lasso(models, traces):
+    with pytest.raises(RoarAssertionError, match=r"(?s)livelock violated on .*retry_forever.roar.*"
+                                                 r"-- cycle \(repeats forever\) --"):
+        assert_no_livelock(models / "faulty" / "retry_forever.roar", "hand::holding == true")
+    assert assert_no_livelock(models / "faulty" / "retry_bounded.roar", "hand::holding == true").holds("livelock")
+
+
+def test_an_invariant_on_a_clf_model(models, traces):
+    dl = load(models / "philosophers" / "dl.clf")
+    assert assert_invariant(dl, never="fork F * busy F").holds("invariant")
+    with pytest.raises(RoarAssertionError) as e:
+        assert_invariant(dl, never=["at1 P * at1 Q"])
+    assert "forbidden pattern 'at1 P * at1 Q' (reached in 2 steps)" in str(e.value)
+    assert "      1. [p0] take_first\n      2. [p1] take_first" in str(e.value)
+    with pytest.raises(RoarError, match="never=.* or exclusive_writes=True"):
+        assert_invariant(dl)
+
+
+def test_sequential_achievement(models, traces):
+    spec = load_spec(models / "faulty" / "ordered_pick.roar", functional=models / "faulty" / "reliable_tools.py")
+    with pytest.raises(RoarAssertionError, match="in cell.work.clamp_then_drill, a command of the subtree of "
+                                                 r"'make\(drill::drilled == true\)' started before"):
+        assert_sequential_achievement(spec, "cell::done == true", budget={"max_states": 3000})
+
+
+def test_a_search_out_of_budget_fails_as_not_decided(models):
+    ok = models / "philosophers" / "ok.clf"
+    with pytest.raises(RoarAssertionError, match=r"deadlock not decided on .*ok.clf: no deadlock in \d+ states; "
+                                                 r"search incomplete \(state budget of 10 reached\)"):
+        assert_no_deadlock(ok, budget={"max_states": 10})
+    assert assert_no_deadlock(ok, budget={"max_states": 10}, allow_incomplete=True).status("deadlock") == "incomplete"
+    # the settings' budget applies unless the call gives one, key by key
+    with using_settings(TestSettings(budget=Budget(max_states=10, max_seconds=60))):
+        assert current_settings().budget.max_states == 10
+        with pytest.raises(RoarAssertionError, match="not decided"):
+            assert_no_deadlock(ok)
+        assert assert_no_deadlock(ok, budget=Budget(max_states=100_000)).holds("deadlock")
+
+
+def test_assert_succeeds_prints_the_run_and_writes_its_trace(examples, traces):
+    spec = load_spec(examples / "pick" / "pick.roar")
+    assert assert_succeeds(spec, "cell::lifted == true").ok
+    with pytest.raises(RoarAssertionError) as e:
+        assert_succeeds(spec, "cell::lifted == true", faults=["close_jaws:1"])
+    lines = str(e.value).splitlines()
+    assert lines[0] == "request cell::lifted == true ended in failure, not success"
+    assert lines[1] == f"{spec.path}: request cell::lifted == true, faults close_jaws:1, seed 0"
+    assert lines[-1] == f"  trace: {traces / 'pick.run.jsonl'}"
+    assert e.value.run.outcome == "failure" and read_trace(e.value.trace)[0]["outcome"] == "failure"
+
+
+def test_a_target_needs_what_its_kind_needs(models, examples):
+    with pytest.raises(RoarError, match="needs a request"):
+        assert_no_deadlock(examples / "pick" / "pick.roar")
+    with pytest.raises(RoarError, match="takes no request"):
+        assert_no_deadlock(models / "clf" / "arith.clf", "x::y == 1")
+    with pytest.raises(RoarError, match="'start' is for .clf models"):
+        assert_no_deadlock(examples / "pick" / "pick.roar", "cell::lifted == true", start=2)
+    with pytest.raises(TypeError, match="not int"):
+        assert_no_deadlock(3)
