@@ -121,13 +121,16 @@ def _scratch() -> Path:
     return _SCRATCH[0]
 
 
-def _scratch_file(text: str, name: str, suffix: str) -> Path:
+def _scratch_path(text: str, name: str, suffix: str) -> Path:
+    """Where a model given as text is written when a file is needed (named by its content)."""
     safe = re.sub(r"[^A-Za-z0-9_-]", "_", name) or "model"
     digest = hashlib.sha1(text.encode("utf-8")).hexdigest()[:12]
-    folder = _scratch() / digest
-    folder.mkdir(exist_ok=True)
-    path = folder / f"{safe}{suffix}"
+    return _scratch() / digest / f"{safe}{suffix}"
+
+
+def _written(path: Path, text: str) -> Path:
     if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text, encoding="utf-8")
     return path
 
@@ -178,11 +181,17 @@ class AgentSpec:
     # -- construction -------------------------------------------------------------
     @classmethod
     def from_text(cls, text: str, *, name: str = "spec", functional: Optional[PathLike] = None) -> "AgentSpec":
-        """A spec in the single-file layout given as text (checked). It is written to a scratch
-        file so that the explorer and error messages have a file to name."""
+        """A spec in the single-file layout given as text, parsed and checked. Positions name a
+        scratch file, written when a file is needed (the explorer reads one)."""
+        from ..roar.checks import check_spec
         from ..roar.parser import load_spec as parse_spec
-        path = _scratch_file(text, name, ".roar")
-        tree = parse_spec(path)
+        from ..roar.parser import parse_roar
+        path = _scratch_path(text, name, ".roar")
+        tree = parse_roar(text, str(path))
+        if any(ag.imports for ag in tree.agents):   # imports are loaded from files: go through one
+            tree = parse_spec(_written(path, text))
+        else:
+            check_spec(tree)
         return cls(tree, path, functional=Path(functional) if functional is not None else None, text=text,
                    name=f"<{name}>")
 
@@ -251,17 +260,17 @@ class AgentSpec:
         from ..robot.commands import split_faults
         from ..robot.scenario import load_scenario
         from ..robot.sim import simulate
-        if self.path is None:
+        if self.text is not None and self.functional is None:
             raise RoarError("a spec given as text has no functional-layer module to bind to the robot")
         sc = load_scenario(scenario)
-        binding = load_robot_binding(self.path, self.functional)
+        binding = load_robot_binding(self._file(), self.functional)
         model = compile_spec(self.ast, request, registry=binding.robot, functional="python")
         world, prims = split_faults([str(f) for f in faults], sc, model)
         wanted = list(dict.fromkeys(prims))
         sim_box: list = []
 
         def go(fs):
-            sim = simulate(model, load_robot_binding(self.path, self.functional).robot, sc, seed=seed,
+            sim = simulate(model, load_robot_binding(self._file(), self.functional).robot, sc, seed=seed,
                            faults=world, prim_faults=fs, max_steps=max_steps)
             sim_box[:] = [sim]
             return sim.run
@@ -293,7 +302,7 @@ class AgentSpec:
     def _file(self) -> Path:
         if self.path is None:
             raise RoarError(f"{self.name}: a spec built from a tree has no file to explore; use AgentSpec.from_text")
-        return self.path
+        return _written(self.path, self.text) if self.text is not None else self.path
 
     # -- on the robot --------------------------------------------------------------------
     def conform(self, request: str, scenario: PathLike, *, runs: int = 3, seed: int = 0, faults: Sequence[str] = (),
@@ -664,22 +673,36 @@ class ClfRun:
 class ClfModel:
     """A CLF program (Celf's language) with its ``#exec`` start states."""
 
-    def __init__(self, path: Path, *, text: Optional[str] = None, start: int = 1, name: Optional[str] = None):
+    def __init__(self, path: Path, *, text: Optional[str] = None, start: Optional[int] = 1,
+                 name: Optional[str] = None):
         self.path = Path(path)
         self.text = text
-        self.start = start
+        self._start = start
         self.name = name or str(self.path)
         self._program: Optional["Program"] = None
 
     @classmethod
-    def from_text(cls, text: str, *, name: str = "model", start: Optional[int] = None) -> "ClfModel":
-        """A program given as text (written to a scratch file: the explorer reads files);
-        ``start`` defaults to its last ``#exec``."""
-        path = _scratch_file(text, name, ".clf")
-        m = cls(path, text=text, name=f"<{name}>")
-        m.program  # type-check now: a bad program is an error here, not at first use
-        m.start = start if start is not None else max(1, m.starts)
+    def from_text(cls, text: str, *, name: str = "model", start: Optional[int] = None,
+                  check: bool = True) -> "ClfModel":
+        """A program given as text; ``start`` defaults to its last ``#exec``. With ``check`` it is
+        type-checked now (a bad program is an error here, not at first use); the strategies,
+        whose programs are well-typed by construction, leave that to first use. The text is
+        written to a scratch file when the explorer needs one."""
+        m = cls(_scratch_path(text, name, ".clf"), text=text, start=start, name=f"<{name}>")
+        if check:
+            m.program
         return m
+
+    @property
+    def start(self) -> int:
+        """The ``#exec`` runs and explorations start from (counted from 1)."""
+        if self._start is None:
+            self._start = max(1, self.starts)
+        return self._start
+
+    @start.setter
+    def start(self, k: int) -> None:
+        self._start = k
 
     def __repr__(self) -> str:
         if self.text is not None:
@@ -693,7 +716,8 @@ class ClfModel:
     def program(self) -> "Program":
         if self._program is None:
             from ..clf.program import Program
-            self._program = Program.from_file(self.path)
+            self._program = (Program.from_text(self.text, str(self.path)) if self.text is not None
+                             else Program.from_file(self.path))
         return self._program
 
     @property
@@ -739,7 +763,8 @@ class ClfModel:
         pos = _caller_pos()
         ps = PropertySpec(check=props, progress=list(progress), fairness=fairness, accept=accept,
                           never=[(p, pos) for p in never], sources=[str(pos.file)] if accept else [])
-        job = Job(path=self.path, name=name or Path(self.name.strip("<>")).stem, model=self.path,
+        path = _written(self.path, self.text) if self.text is not None else self.path
+        job = Job(path=path, name=name or Path(self.name.strip("<>")).stem, model=path,
                   start=start if start is not None else self.start, props=ps, budget=as_budget(budget),
                   backend=backend, reduction=reduction)
         return _explore(job)

@@ -130,15 +130,18 @@ def _constraint(draw, b: _Block, agents: list) -> str:
     return text
 
 
+@st.composite
 def _statement(draw, b: _Block, agents: list) -> str:
-    kinds = ["set", "let", "make", "ensure", "wait", "assert", "call"] + (["abort"] if b.handles else [])
+    """One statement (each its own span of choices, so that the shrinker can delete it whole)."""
+    # abort only of a live handle; weighted up then, or it would be rare (it needs a `let h ensure` first)
+    kinds = ["set", "let", "make", "ensure", "wait", "assert", "call"] + (["abort"] * 3 if b.handles else [])
     kind = draw(st.sampled_from(kinds))
     if kind == "set":
         var, ty = draw(st.sampled_from(b.agent.writable()))
         return f"set {var} {_expr(draw, ty, b)};"
     if kind == "let":
         ty = draw(st.sampled_from(["int", "bool"]))
-        name = f"l{len(b.locals)}"
+        name = f"l{sum(1 for n in b.locals if n.startswith('l'))}"
         text = f"let {name} {_expr(draw, ty, b)};"
         b.locals[name] = ty
         return text
@@ -166,63 +169,73 @@ def _statement(draw, b: _Block, agents: list) -> str:
 
 def _decls(vars_: tuple, init: bool) -> str:
     defaults = {"bool": "false", "int": "0"}
-    return " ".join(f"{t} {v}" + (f" = {defaults[t]}" if init else "") + ";" for v, t in vars_)
+    text = " ".join(f"{t} {v}" + (f" = {defaults[t]}" if init else "") + ";" for v, t in vars_)
+    return f"{{ {text} }}" if text else "{ }"
+
+
+@st.composite
+def _agent_shape(draw, name: str, functions: bool) -> _Agent:
+    return _Agent(name,
+                  controllable=_CONTROLLABLE[:draw(st.integers(0, len(_CONTROLLABLE)))],
+                  readable=_READABLE[:draw(st.integers(1, len(_READABLE)))],
+                  private=_PRIVATE[:draw(st.integers(0, len(_PRIVATE)))],
+                  function=f"probe_{name}" if functions and draw(st.booleans()) else None)
+
+
+@st.composite
+def _recipe(draw, name: str, ag: _Agent, agents: list, wheres: dict, post: str, max_statements: int) -> list[str]:
+    others = [o for o in agents if o is not ag]
+    b = _Block(ag, others, wheres)
+    out = [f"        {name} = recipe {{"]
+    if draw(st.booleans()):
+        out.append(f"          pre = {{ {{{_expr(draw, 'bool', _Block(ag, others, wheres), 0)}}} }}")
+    if draw(st.booleans()):
+        out.append(f"          prefer = {draw(st.integers(-1, 2))}")
+    body = draw(st.lists(_statement(b, agents), max_size=max_statements))
+    if draw(st.booleans()):
+        body.append(f"set {post};")
+    out.append("          body = {")
+    out += [f"            {x}" for x in body]
+    out.append("          }")
+    if draw(st.booleans()):
+        var, ty = draw(st.sampled_from(ag.writable()))
+        out.append(f"          end = {{ set {var} {draw(_LIT[ty])}; }}")
+    out.append("        }")
+    return out
+
+
+@st.composite
+def _task(draw, ti: int, ag: _Agent, agents: list, wheres: dict, max_recipes: int, max_statements: int) -> list[str]:
+    others = [o for o in agents if o is not ag]
+    post_var, post_ty = ag.readable[ti % len(ag.readable)]
+    post_val = "true" if post_ty == "bool" else str(draw(st.integers(1, 3)))
+    out = [f"    {_TASKS[ti]} = task {{"]
+    if draw(st.booleans()):
+        out.append(f"      pre = {{ {{{_expr(draw, 'bool', _Block(ag, others, wheres), 0)}}} }}")
+    out.append(f"      post = {{ {{{post_var} == {post_val}}} }}")
+    out.append("      recipes = {")
+    for ri in range(draw(st.integers(1, max_recipes))):
+        out += draw(_recipe(_RECIPES[ri], ag, agents, wheres, f"{post_var} {post_val}", max_statements))
+    out += ["      }", "    }"]
+    return out
 
 
 @st.composite
 def _spec_text(draw, min_agents: int, max_agents: int, max_tasks: int, max_recipes: int, max_statements: int,
                functions: bool) -> str:
     n = draw(st.integers(min_agents, max_agents))
-    agents = []
-    for name in _AGENTS[:n]:
-        agents.append(_Agent(
-            name,
-            controllable=_CONTROLLABLE[:draw(st.integers(0, len(_CONTROLLABLE)))],
-            readable=_READABLE[:draw(st.integers(1, len(_READABLE)))],
-            private=_PRIVATE[:draw(st.integers(0, len(_PRIVATE)))],
-            function=f"probe_{name}" if functions and draw(st.booleans()) else None))
-    out = []
+    agents = [draw(_agent_shape(name, functions)) for name in _AGENTS[:n]]
     wheres: dict = {}
+    out = []
     for ag in agents:
-        others = [o for o in agents if o is not ag]
-        out.append(f"{ag.name} = ability {{")
-        out.append("  context = {")
-        out.append(f"    {{ {_decls(ag.controllable, False)} }}".replace("{  }", "{ }"))
-        out.append(f"    {{ {_decls(ag.readable, True)} }}")
-        out.append(f"    {{ {_decls(ag.private, True)} }}".replace("{  }", "{ }"))
-        out.append("  }")
+        out += [f"{ag.name} = ability {{", "  context = {", f"    {_decls(ag.controllable, False)}",
+                f"    {_decls(ag.readable, True)}", f"    {_decls(ag.private, True)}", "  }"]
         if ag.function:
             out.append(f"  export = {{\n    {{ }}\n    {{ bool {ag.function}(int); }}\n    {{ }}\n  }}")
         out.append("  tasks = {")
         for ti in range(draw(st.integers(1, max_tasks))):
-            post_var, post_ty = ag.readable[ti % len(ag.readable)]
-            post_val = "true" if post_ty == "bool" else draw(st.integers(1, 3).map(str))
-            out.append(f"    {_TASKS[ti]} = task {{")
-            if draw(st.booleans()):
-                out.append(f"      pre = {{ {{{_expr(draw, 'bool', _Block(ag, others, wheres), 0)}}} }}")
-            out.append(f"      post = {{ {{{post_var} == {post_val}}} }}")
-            out.append("      recipes = {")
-            for ri in range(draw(st.integers(1, max_recipes))):
-                b = _Block(ag, others, wheres)
-                out.append(f"        {_RECIPES[ri]} = recipe {{")
-                if draw(st.booleans()):
-                    out.append(f"          pre = {{ {{{_expr(draw, 'bool', _Block(ag, others, wheres), 0)}}} }}")
-                if draw(st.booleans()):
-                    out.append(f"          prefer = {draw(st.integers(-1, 2))}")
-                body = [_statement(draw, b, agents) for _ in range(draw(st.integers(0, max_statements)))]
-                if draw(st.booleans()):
-                    body.append(f"set {post_var} {post_val};")
-                out.append("          body = {")
-                out += [f"            {s}" for s in body]
-                out.append("          }")
-                if draw(st.booleans()):
-                    var, ty = draw(st.sampled_from(ag.writable()))
-                    out.append(f"          end = {{ set {var} {draw(_LIT[ty])}; }}")
-                out.append("        }")
-            out.append("      }")
-            out.append("    }")
-        out.append("  }")
-        out.append("}")
+            out += draw(_task(ti, ag, agents, wheres, max_recipes, max_statements))
+        out += ["  }", "}"]
     return "\n".join(out) + "\n"
 
 
@@ -592,4 +605,4 @@ def clf_programs(signature: str, *, max_rules: int = 4, max_premises: int = 2, m
         raise InvalidArgument("the signature declares no predicate (a family 'p : A1 -> ... -> type' over "
                               "inhabited base types) to write rules with")
     return _program_text(s, max_rules, max_premises, max_conclusions, max_facts, max_depth, persistent).map(
-        lambda text: ClfModel.from_text(text, name="program"))
+        lambda text: ClfModel.from_text(text, name="program", check=False))
