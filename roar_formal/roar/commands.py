@@ -16,21 +16,9 @@ from ..errors import RoarError
 
 
 def functional_module(spec_path: Path, given: Optional[Path]) -> Optional[Path]:
-    """The functional-layer module of a spec: ``--functional FILE``, else ``SPEC.py`` next to a
-    ``.roar`` file, else ``functional.py`` inside (or ``NAME.py`` next to) a hyper folder."""
-    if given is not None:
-        if not given.is_file():
-            raise RoarError(f"{given}: no such functional-layer module")
-        return given
-    spec_path = Path(spec_path)
-    candidates = []
-    if spec_path.is_dir():
-        candidates = [spec_path / "functional.py", spec_path.with_suffix(".py")]
-    else:
-        candidates = [spec_path.with_suffix(".py")]
-        if spec_path.suffix == ".ability":
-            candidates.append(spec_path.parent / "functional.py")
-    return next((c for c in candidates if c.is_file()), None)
+    """The functional-layer module of a spec (``--functional FILE`` or the one next to it), or None."""
+    from .functional import find_module
+    return find_module(spec_path, given)
 
 
 def load_registry(path: Optional[Path]):

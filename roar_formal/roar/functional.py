@@ -34,7 +34,7 @@ from ..errors import Pos, RoarError
 from . import ast as a
 
 __all__ = ["Outcome", "Primitive", "Registry", "Binding", "BindingError", "SUCCESS", "FAILURE",
-           "DEFAULT_OUTCOMES"]
+           "DEFAULT_OUTCOMES", "find_module", "module_candidates"]
 
 
 @dataclass(frozen=True)
@@ -240,6 +240,31 @@ class Registry:
                     unique.append(e)
             raise BindingError(unique)
         return Binding(functions, variables)
+
+
+def module_candidates(spec_path) -> list:
+    """Where a spec's functional-layer module may be: ``SPEC.py`` next to a ``.roar`` file,
+    ``functional.py`` inside (or ``NAME.py`` next to) a hyper folder, ``functional.py`` next to an
+    ``.ability`` file."""
+    from pathlib import Path
+    spec_path = Path(spec_path)
+    if spec_path.is_dir():
+        return [spec_path / "functional.py", spec_path.with_suffix(".py")]
+    out = [spec_path.with_suffix(".py")]
+    if spec_path.suffix == ".ability":
+        out.append(spec_path.parent / "functional.py")
+    return out
+
+
+def find_module(spec_path, given=None):
+    """The functional-layer module of a spec: ``given`` (``--functional FILE``), else the first of
+    :func:`module_candidates` that exists, else None."""
+    from pathlib import Path
+    if given is not None:
+        if not Path(given).is_file():
+            raise RoarError(f"{given}: no such functional-layer module")
+        return Path(given)
+    return next((c for c in module_candidates(spec_path) if c.is_file()), None)
 
 
 def _ekey(e: RoarError):

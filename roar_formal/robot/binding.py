@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Optional
 
 from ..errors import RoarError
-from ..roar.functional import Registry
+from ..roar.functional import Registry, find_module, module_candidates
 
 __all__ = ["RobotBinding", "load_robot_binding", "functional_module_of"]
 
@@ -30,20 +30,12 @@ class RobotBinding:
 
 
 def functional_module_of(spec: Path, given: Optional[Path] = None) -> Path:
-    """``--functional FILE``, else ``SPEC.py`` next to a ``.roar`` file, else ``functional.py`` in a hyper folder."""
-    if given is not None:
-        if not Path(given).is_file():
-            raise RoarError(f"{given}: no such functional-layer module")
-        return Path(given)
-    spec = Path(spec)
-    cands = [spec / "functional.py", spec.with_suffix(".py")] if spec.is_dir() else [spec.with_suffix(".py")]
-    if spec.suffix == ".ability":
-        cands.append(spec.parent / "functional.py")
-    for c in cands:
-        if c.is_file():
-            return c
-    raise RoarError(f"{spec}: no functional-layer module found (looked for "
-                    f"{', '.join(str(c) for c in cands)}); pass --functional FILE")
+    """``--functional FILE``, else the module next to the spec (roar.functional.find_module); an error if none."""
+    found = find_module(spec, given)
+    if found is None:
+        looked = ", ".join(str(c) for c in module_candidates(spec))
+        raise RoarError(f"{spec}: no functional-layer module found (looked for {looked}); pass --functional FILE")
+    return found
 
 
 def load_robot_binding(spec: Path, given: Optional[Path] = None) -> RobotBinding:
