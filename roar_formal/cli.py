@@ -28,8 +28,22 @@ app = typer.Typer(
 err_console = make_console(stderr=True)
 
 
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+        try:
+            v = version("roar-formal")
+        except PackageNotFoundError:  # run from a source tree without installing
+            v = "unknown (not installed)"
+        print(f"roar-verify (roar-formal) {v}")
+        raise typer.Exit(0)
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                      help="Print the version and exit."),
+) -> None:
     """Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration."""
 
 

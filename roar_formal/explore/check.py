@@ -48,8 +48,24 @@ class JobResult:
     fingerprint: Optional[dict] = None  # of the sources explored (trace/fingerprint.py)
 
     @property
+    def unexpected(self) -> list[str]:
+        """What makes the job fail: verdicts other than the expected ones, and violations of
+        properties the job expects nothing of (a violation is an error unless [expect] says so)."""
+        out = list(self.mismatches)
+        for p, v in self.verdicts.items():
+            if p not in self.job.expect and v.status == "violated":
+                out.append(f"{p}: violated, and the job expects nothing of it: a violation is an error "
+                           f"(write [expect] {p} = \"violated\" if it is intended)")
+        return out
+
+    @property
     def ok(self) -> bool:
-        return not self.mismatches
+        return not self.unexpected
+
+    @property
+    def incomplete(self) -> list[str]:
+        """Properties the job expects nothing of whose search ran out of budget: no verdict."""
+        return [p for p, v in self.verdicts.items() if p not in self.job.expect and v.status == "incomplete"]
 
 
 def load_model(job: Job) -> tuple[Program, Context]:

@@ -13,7 +13,7 @@ from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
-from ..console import make_console
+from ..console import make_console, styled
 from ..errors import RoarError
 
 
@@ -30,7 +30,12 @@ def register(app: typer.Typer) -> None:
                                     help="Folder where counterexample traces are written."),
         no_traces: bool = typer.Option(False, "--no-traces", help="Do not write counterexample traces."),
     ) -> None:
-        """Run verification jobs; exit 0 only when every verdict is the expected one."""
+        """Run verification jobs; exit 0 only when every verdict is the expected one.
+
+        Exit status: 0 every verdict as expected; 1 a verdict differs from its expectation, or a
+        property the job expects nothing of is violated; 2 bad input; 4 no violation, but a search
+        ran out of budget on a property the job expects nothing of (no verdict).
+        """
         from .check import run_job, save_counterexample
         from .jobs import find_jobs, load_job
 
@@ -65,6 +70,12 @@ def register(app: typer.Typer) -> None:
             _summary(console, results)
         if not all(r.ok for r in results):
             raise typer.Exit(1)
+        if any(r.incomplete for r in results):   # no violation, but no verdict either: its own exit code
+            if not as_json:
+                names = ", ".join(f"{r.job.name} ({', '.join(r.incomplete)})" for r in results if r.incomplete)
+                console.print(styled(("incomplete: ", "yellow"), f"{names}: a budget ran out before a verdict; "
+                                     "raise the job's [bounds] (exit status 4)"), soft_wrap=True)
+            raise typer.Exit(4)
 
     @app.command("replay")
     def replay_cmd(
@@ -134,7 +145,7 @@ def _print_result(console: Console, res, verbose: bool) -> None:
         console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}", markup=True)
         if v.counterexample is not None:
             _print_cx(console, res, p, verbose)
-    for m in res.mismatches:
+    for m in res.unexpected:
         console.print(f"  {m}", style="red")
 
 
@@ -222,7 +233,8 @@ def _summary(console: Console, results) -> None:
                 mark = "" if want is None or want == v.status else f" (want {want})"
                 cells.append(Text.assemble((v.status, _STYLE[v.status]), mark))
         t.add_row(r.job.name, *cells, f"{r.graph.n_states:,}", f"{r.seconds:.2f} s",
-                  Text("as expected", style="green") if r.ok else Text("unexpected", style="red"))
+                  Text("as expected", style="green") if r.ok and not r.incomplete else
+                  Text("incomplete", style="yellow") if r.ok else Text("unexpected", style="red"))
     console.print(t)
 
 

@@ -1,0 +1,65 @@
+"""Exit codes of ``roar-verify check`` as SPIN and TLC give them: a violation is an error unless expected.
+
+0: every verdict as expected; 1: a verdict differs from its expectation, or a property the job
+expects nothing of is violated; 4: no violation, but a search ran out of budget (no verdict).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from roar_formal.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def check(capsys, tmp_path, text: str) -> tuple[int, str, str]:
+    job = tmp_path / "job.toml"
+    job.write_text(text)
+    code = 0
+    try:
+        main(["check", str(job), "--no-traces"])
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def job(model: str, extra: str = "") -> str:
+    return (f'name = "j"\nmodel = "{ROOT / "models" / "philosophers" / model}"\n'
+            f'properties = ["{ROOT / "properties" / "philosophers.toml"}"]\n{extra}')
+
+
+def test_a_violation_without_an_expectation_is_an_error(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    code, out, err = check(capsys, tmp_path, job("dl.clf"))
+    assert code == 1
+    assert "deadlock: violated, and the job expects nothing of it: a violation is an error" in out
+    assert "as expected" not in out
+
+
+def test_the_same_violation_expected_passes(capsys, tmp_path):
+    code, out, err = check(capsys, tmp_path, job("dl.clf", '[expect]\ndeadlock = "violated"\nlivelock = "holds"\n'))
+    assert code == 0 and "as expected" in out
+
+
+def test_no_violation_but_no_verdict_has_its_own_exit_code(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    code, out, err = check(capsys, tmp_path, job("ok.clf", "[bounds]\nmax_states = 5\n"))
+    assert code == 4
+    assert "incomplete" in out and "a budget ran out before a verdict" in out
+
+
+def test_version_and_module_entry_point(capsys):
+    import subprocess
+    import sys
+    code = 0
+    try:
+        main(["--version"])
+    except SystemExit as exc:
+        code = exc.code or 0
+    out, _err = capsys.readouterr()
+    assert code == 0 and out.startswith("roar-verify (roar-formal) ")
+    run = subprocess.run([sys.executable, "-m", "roar_formal", "--version"], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0 and run.stdout == out

@@ -1,0 +1,104 @@
+"""RoarMachine: hypothesis drives the executable model; invariants and built-in checks fail with the run.
+
+Shrinking a stateful run takes ~15 s for the docs' example, so these tests run the generate phase
+only (finding is what they check; the docs' excerpt of a shrunk run is checked line by line where
+it does not depend on how far shrinking went).
+"""
+
+import importlib.util
+import re
+
+import pytest
+from hypothesis import HealthCheck, Phase, settings
+from hypothesis.stateful import invariant, run_state_machine_as_test
+
+from roar_formal import RoarError
+from roar_formal.testing import RoarMachine, load_spec
+
+FIND = settings(max_examples=60, phases=[Phase.generate], database=None, deadline=None, derandomize=True,
+                stateful_step_count=100, suppress_health_check=list(HealthCheck))
+PASS = settings(FIND, max_examples=8)
+
+
+def failure(machine, how=FIND) -> str:
+    """The failure of a machine run: the message, its notes (the run, hypothesis' steps)."""
+    with pytest.raises(AssertionError) as e:
+        run_state_machine_as_test(machine, settings=how)
+    return "\n".join([str(e.value), *getattr(e.value, "__notes__", [])])
+
+
+@pytest.fixture(scope="module")
+def docs_machine(examples):
+    path = examples / "pick_machine" / "test_pick_machine.py"
+    spec = importlib.util.spec_from_file_location("docs_pick_machine", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.PickMachine
+
+
+def test_the_docs_machine_finds_the_busy_gripper(docs_machine, docs_shows):
+    out = failure(docs_machine)
+    assert out.startswith("the gripper is still busy when all is done")
+    assert re.search(r"after \d+ steps; the run, one ROAR event a line:", out)
+    assert "Draw" in out and "(outcome): 'gripper::close_jaws -> failure'" in out
+    docs_shows("pick_machine", "AssertionError: " + out)
+
+
+def test_the_docs_machine_passes_on_the_fixed_spec(docs_machine, examples):
+    class Fixed(docs_machine):
+        spec = load_spec(examples / "pick_fixed" / "pick.roar")
+
+    run_state_machine_as_test(Fixed, settings=PASS)
+
+
+def test_a_deadlock_is_found_by_the_built_in_check(models):
+    class Mutual(RoarMachine):
+        spec = models / "faulty" / "mutual_make.roar"       # a path works too
+        request = "arm::started == true"
+
+    out = failure(Mutual)
+    assert out.startswith("deadlock: nothing can move, but a request is not final or a recipe is still live")
+    assert "make R2 to arm: arm::parked == true" in out
+
+
+def test_never_patterns_and_one_engine_step_a_rule(examples):
+    class NoFailure(RoarMachine):
+        spec = load_spec(examples / "pick" / "pick.roar")
+        request = "cell::lifted == true"
+        never = ["rs R s_failure"]
+        granularity = "step"
+
+    out = failure(NoFailure)
+    assert out.startswith("invariant violated: a reachable state matches the forbidden pattern 'rs R s_failure'")
+    assert "close_jaws() = false" in out
+
+
+def test_helpers_read_the_state_and_mistakes_are_reported(examples):
+    seen = []
+
+    class Reader(RoarMachine):
+        spec = load_spec(examples / "pick_fixed" / "pick.roar")
+        request = "cell::lifted == true"
+
+        @invariant()
+        def read(self):
+            seen.append((self.value("cell::lifted"), self.quiescent, self.final))
+            if self.quiescent:
+                assert self.final and self.value("gripper::holding") is True
+                with pytest.raises(RoarError, match="no variable 'cell::nope'"):
+                    self.value("cell::nope")
+
+    run_state_machine_as_test(Reader, settings=PASS)
+    assert (False, False, False) in seen and (True, True, True) in seen
+
+    class Unset(RoarMachine):
+        spec = examples / "pick" / "pick.roar"
+
+    with pytest.raises(RoarError, match="set the class attributes 'spec'"):
+        Unset()
+
+    class Odd(Reader):
+        granularity = "rule"
+
+    with pytest.raises(RoarError, match="granularity must be 'event' or 'step'"):
+        Odd()
