@@ -35,7 +35,15 @@ class SafeConsole(Console):
 
 
 def make_console(**kwargs: Any) -> Console:
-    """A console with emoji substitution, markup and highlighting off (overridable per print)."""
+    """A console with emoji substitution, markup and highlighting off (overridable per print).
+
+    Off a terminal (a pipe, a CI log) with no COLUMNS set, lines may be 200 characters wide, so
+    tables fit their content instead of being cut at rich's default of 80."""
+    import os
+    import sys
+    stream = sys.stderr if kwargs.get("stderr") else sys.stdout
+    if "width" not in kwargs and "COLUMNS" not in os.environ and not getattr(stream, "isatty", lambda: False)():
+        kwargs["width"] = 200
     kwargs.setdefault("highlight", False)
     kwargs.setdefault("markup", False)
     kwargs["emoji"] = False

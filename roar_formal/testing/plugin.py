@@ -73,15 +73,20 @@ def parse_budget(text: str) -> dict:
 
 
 def _marker_budget(item: pytest.Item) -> dict:
+    """The budget of the test's ``roar_budget`` markers (the closest wins); a malformed one fails the test."""
     out: dict = {}
-    for mark in reversed(list(item.iter_markers("roar_budget"))):   # the closest marker wins
+    for mark in reversed(list(item.iter_markers("roar_budget"))):
         if mark.args:
-            raise pytest.UsageError(f"{item.nodeid}: roar_budget takes keywords: max_states=..., max_seconds=..., "
-                                    f"max_memory_mb=...")
+            pytest.fail(f"roar_budget takes keywords: max_states=..., max_seconds=..., max_memory_mb=..., "
+                        f"not {mark.args!r}", pytrace=False)
         for k, v in mark.kwargs.items():
             if k not in ("max_states", "max_seconds", "max_memory_mb"):
-                raise pytest.UsageError(f"{item.nodeid}: roar_budget has no key {k!r}; expected max_states, "
-                                        f"max_seconds or max_memory_mb")
+                pytest.fail(f"roar_budget has no key {k!r}; expected max_states, max_seconds or max_memory_mb",
+                            pytrace=False)
+            whole = k != "max_seconds"
+            if isinstance(v, bool) or not isinstance(v, int if whole else (int, float)) or v <= 0:
+                pytest.fail(f"roar_budget({k}={v!r}): expected a {'whole ' if whole else ''}number above 0",
+                            pytrace=False)
             out[k] = v
     return out
 
@@ -103,13 +108,13 @@ def _traces(config: pytest.Config) -> Path:
     return config.stash[_TRACES_KEY]
 
 
-@pytest.hookimpl(wrapper=True)
+@pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
     """Run the test with its budget and trace folder as the assertion helpers' settings."""
     from ._context import PLUGIN
     token = PLUGIN.set((_budget_kwargs(item), lambda: _traces(item.config)))
     try:
-        return (yield)
+        yield
     finally:
         PLUGIN.reset(token)
 

@@ -95,6 +95,10 @@ def test_small_budget(roar_load, roar_budget):
 @pytest.mark.roar_budget(max_states=100_000)
 def test_large_budget(roar_load):
     assert_no_deadlock(roar_load("ok.clf"))
+
+@pytest.mark.roar_budget(max_states="many")
+def test_bad_marker():
+    pass
 '''
 
 
@@ -110,7 +114,8 @@ def test_fixtures_marker_and_the_deadlock_message(plugin_suite, run_cli, tmp_pat
     plugin_suite.makepyfile(test_plugin_suite=PLUGIN_TESTS.replace("BUDGET_STATES", "200_000"))
     traces = tmp_path / "traces"
     result = plugin_suite.runpytest(*QUIET, f"--roar-traces={traces}")
-    result.assert_outcomes(passed=2, failed=2)
+    result.assert_outcomes(passed=2, failed=3)
+    result.stdout.fnmatch_lines(["*roar_budget(max_states='many'): expected a whole number above 0"])
     out = result.stdout.str()
     # the deadlock: its counterexample, as `check` prints it, and where its trace is
     result.stdout.fnmatch_lines([
@@ -129,7 +134,7 @@ def test_fixtures_marker_and_the_deadlock_message(plugin_suite, run_cli, tmp_pat
 
 def test_the_budget_option_is_the_default_and_a_marker_wins(plugin_suite):
     plugin_suite.makepyfile(test_plugin_suite=PLUGIN_TESTS.replace("BUDGET_STATES", "7"))
-    result = plugin_suite.runpytest(*QUIET, "--roar-budget", "states=7,seconds=30", "-k", "loads or budget")
+    result = plugin_suite.runpytest(*QUIET, "--roar-budget", "states=7,seconds=30", "-k", "not deadlock and not bad")
     result.assert_outcomes(passed=2, failed=1)        # the small budget's test fails, the marker's 100,000 wins
     result = plugin_suite.runpytest(*QUIET, "--roar-budget", "states=x")
     assert result.ret == pytest.ExitCode.USAGE_ERROR
