@@ -23,7 +23,15 @@ _STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
 def register(app: typer.Typer) -> None:
     @app.command("check")
     def check(
-        paths: List[Path] = typer.Argument(..., help="Job files (*.toml) or folders of them."),
+        paths: List[Path] = typer.Argument(..., help="Job files (*.toml) or folders of them; or a .clf program "
+                                           "or a ROAR spec to check with the default properties."),
+        request: Optional[str] = typer.Option(None, "--request", "-r",
+                                              help="With a spec: the request to enforce."),
+        prop: List[str] = typer.Option([], "--property", "-p", help="With a model or spec: a property to check "
+                                       "(deadlock, livelock, sequential-achievement, exclusive-writes); "
+                                       "repeatable or comma-separated. Default: deadlock and livelock."),
+        max_states: Optional[int] = typer.Option(None, "--max-states", help="Overrides every job's state bound."),
+        max_seconds: Optional[float] = typer.Option(None, "--max-seconds", help="Overrides every job's time bound."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the facts each step consumed and produced."),
         traces: Path = typer.Option(Path("roar-traces"), "--traces",
@@ -36,12 +44,28 @@ def register(app: typer.Typer) -> None:
         property the job expects nothing of is violated; 2 bad input; 4 no violation, but a search
         ran out of budget on a property the job expects nothing of (no verdict).
         """
+        import math
         from .check import run_job, save_counterexample
-        from .jobs import find_jobs, load_job
+        from .jobs import find_jobs, is_model_path, job_for_model, load_job
 
         console = make_console(stderr=as_json)
-        files = find_jobs(paths)
-        jobs = [load_job(f) for f in files]  # every job file is checked before anything runs
+        props = [x.strip() for p in prop for x in p.split(",") if x.strip()]
+        models = [p for p in paths if is_model_path(p)]
+        if (request or props) and not models:
+            raise RoarError("--request and --property are for a model or spec named on the command line; a job "
+                            "file says its own")
+        if max_states is not None and max_states < 1:
+            raise RoarError(f"--max-states {max_states}: expected a positive number of states")
+        if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
+            raise RoarError(f"--max-seconds {max_seconds}: expected a positive, finite number of seconds")
+        files = find_jobs([p for p in paths if not is_model_path(p)]) if len(models) < len(paths) else []
+        # every job file is checked before anything runs
+        jobs = [load_job(f) for f in files] + [job_for_model(p, request, props) for p in models]
+        for job in jobs:   # command-line bounds override the jobs'
+            if max_states is not None:
+                job.budget.max_states = max_states
+            if max_seconds is not None:
+                job.budget.max_seconds = max_seconds
         results = []
         for job in jobs:
             status = {"text": f"{job.name}: loading"}

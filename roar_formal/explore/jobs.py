@@ -278,6 +278,47 @@ def load_job(path: str | Path) -> Job:
     return job
 
 
+def is_model_path(p: Path) -> bool:
+    """Is ``p`` a model or spec to check directly (not a job file or a folder of them)?"""
+    p = Path(p)
+    if p.is_dir():
+        return any(p.glob("*.ability")) and not any(p.glob("*.toml"))
+    return p.suffix in (".clf", ".roar", ".ability")
+
+
+def job_for_model(path: Path, request: Optional[str] = None, properties: Optional[list[str]] = None) -> Job:
+    """A job without a job file: ``check MODEL.clf`` or ``check SPEC --request ...`` with the
+    default properties (deadlock; and livelock for a spec, where progress and fairness have
+    defaults) and no expectation (so any violation is an error)."""
+    path = Path(path)
+    spec = path.suffix != ".clf"
+    if spec and not request:
+        raise RoarError(f"{path}: checking a spec needs the request to enforce: --request "
+                        f"'agent::var == value [where ...]'")
+    if not spec and request:
+        raise RoarError(f"{path}: --request is for a ROAR spec, not a .clf program")
+    if not path.exists():
+        raise RoarError(f"{path}: no such file or folder")
+    wanted = properties or (["deadlock", "livelock"] if spec else ["deadlock"])
+    allowed = PROPERTIES if spec else tuple(p for p in PROPERTIES if p not in ROAR_PROPERTIES)
+    for p in wanted:
+        if p not in allowed:
+            raise RoarError(f"--property {p}: expected one of {', '.join(allowed)}"
+                            + ("" if spec else " (the others read ROAR events: check a spec)"))
+        if p == "invariant":
+            raise RoarError("--property invariant needs its never patterns: write them in a property file and "
+                            "a job (docs/checking.md)")
+        if p == "livelock" and not spec:
+            raise RoarError("--property livelock on a .clf program needs its progress rules: write them in a "
+                            "property file and a job (docs/checking.md)")
+    job = Job(path=path, name=path.stem if path.suffix else path.name, model=None if spec else path.resolve())
+    if spec:
+        job.spec = path.resolve()
+        job.request = request
+    job.props = PropertySpec(check=list(dict.fromkeys(wanted)), sources=["command line"])
+    return job
+
+
 def find_jobs(paths: list[str | Path]) -> list[Path]:
     """Job files named directly or found (``*.toml``) in the given folders, sorted."""
     out: list[Path] = []

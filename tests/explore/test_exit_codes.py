@@ -63,3 +63,38 @@ def test_version_and_module_entry_point(capsys):
     run = subprocess.run([sys.executable, "-m", "roar_formal", "--version"], capture_output=True, text=True,
                          timeout=120)
     assert run.returncode == 0 and run.stdout == out
+
+
+def run_check(capsys, *argv) -> tuple[int, str, str]:
+    code = 0
+    try:
+        main(["check", *map(str, argv), "--no-traces"])
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_a_spec_or_a_program_is_checked_without_a_job_file(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    code, out, err = run_check(capsys, ROOT / "models" / "faulty" / "mutual_make.roar",
+                               "-r", "arm::started == true", "--max-states", "10000")
+    assert code == 1 and "deadlock: violated, and the job expects nothing of it" in out
+    code, out, err = run_check(capsys, ROOT / "models" / "faulty" / "mutual_make_fixed.roar",
+                               "-r", "arm::started == true")
+    assert code == 0 and "deadlock: holds" in out and "livelock: holds" in out
+    code, out, err = run_check(capsys, ROOT / "models" / "philosophers" / "dl.clf", "--property", "deadlock")
+    assert code == 1 and "deadlock: violated" in out
+    code, out, err = run_check(capsys, ROOT / "models" / "philosophers" / "ok.clf", "--max-states", "5")
+    assert code == 4 and "incomplete" in out
+
+
+def test_checking_without_a_job_file_refuses_what_it_cannot_mean(capsys):
+    code, out, err = run_check(capsys, ROOT / "models" / "conflict.roar")
+    assert code == 2 and "needs the request to enforce" in err
+    code, out, err = run_check(capsys, ROOT / "models" / "philosophers" / "ok.clf", "-p", "livelock")
+    assert code == 2 and "needs its progress rules" in err
+    code, out, err = run_check(capsys, ROOT / "checker" / "conflict.toml", "-r", "x::y == 1")
+    assert code == 2 and "a job file says its own" in err
+    code, out, err = run_check(capsys, ROOT / "models" / "philosophers" / "ok.clf", "--max-seconds", "nan")
+    assert code == 2 and "--max-seconds" in err

@@ -1,9 +1,12 @@
 """The assertion helpers: a failure is the printed counterexample and a replayable trace; budgets."""
 
+import shutil
+
 import pytest
 
 from roar_formal import Budget, RoarError, load, load_spec
-from roar_formal.testing import (RoarAssertionError, TestSettings, assert_invariant, assert_no_deadlock,
+from roar_formal.testing import (RoarAssertionError, TestSettings, assert_conforms, assert_invariant,
+                                 assert_no_deadlock,
                                  assert_no_livelock, assert_sequential_achievement, assert_succeeds,
                                  current_settings, using_settings)
 from roar_formal.trace.format import read_trace
@@ -93,3 +96,18 @@ def test_a_target_needs_what_its_kind_needs(models, examples):
         assert_no_deadlock(examples / "pick" / "pick.roar", "cell::lifted == true", start=2)
     with pytest.raises(TypeError, match="not int"):
         assert_no_deadlock(3)
+
+
+def test_conformance_with_the_robot(models, tmp_path):
+    req = "base::arrived == true where base::gx == 9.0 && base::gy == 3.0"
+    door = models / "scenarios" / "door.toml"
+    rep = assert_conforms(models / "door_nav.roar", req, door, runs=1, random_faults=False)
+    assert rep.sound and len(rep.runs) == 1
+    # the same spec, its binding declaring that no robot result is a successful plan
+    shutil.copy(models / "door_nav.roar", tmp_path)
+    module = (models / "door_nav.py").read_text(encoding="utf-8")
+    (tmp_path / "door_nav.py").write_text(module.replace('PLANNED = Outcome("planned", True)',
+                                                         'PLANNED = Outcome("planned", True, covers=lambda r: False)'),
+                                          encoding="utf-8")
+    with pytest.raises(RoarAssertionError, match=r"(?s)does not conform to the robot of .*door.toml.*NOT sound"):
+        assert_conforms(tmp_path / "door_nav.roar", req, door, runs=1, random_faults=False)
