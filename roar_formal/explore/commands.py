@@ -67,18 +67,32 @@ def register(app: typer.Typer) -> None:
             if max_seconds is not None:
                 job.budget.max_seconds = max_seconds
         results = []
+        import time as _time
         for job in jobs:
-            status = {"text": f"{job.name}: loading"}
+            status = {"text": f"{job.name}: loading", "round": 1, "last": 0, "plain_at": _time.monotonic(),
+                      "began": _time.monotonic()}
 
             def progress(st: dict, job=job) -> None:
-                status["text"] = (f"{job.name}: {st['states']:,} states, {st['transitions']:,} transitions, "
+                if st["states"] < status["last"]:   # a search started again with a larger budget
+                    status["round"] += 1
+                status["last"] = st["states"]
+                rnd = f" (round {status['round']})" if status["round"] > 1 else ""
+                status["text"] = (f"{job.name}{rnd}: {st['states']:,} states, {st['transitions']:,} transitions, "
                                   f"{st['states_per_s']:,.0f} states/s, frontier {st['frontier']:,}, "
-                                  f"{st['memory_mb']:,.0f} MiB")
-                live.update(status["text"])
+                                  f"{st['memory_mb']:,.0f} MiB, {_time.monotonic() - status['began']:,.0f} s")
+                if console.is_terminal:
+                    live.update(status["text"])
+                elif _time.monotonic() - status["plain_at"] >= 5.0:   # CI logs: a plain line every 5 s
+                    status["plain_at"] = _time.monotonic()
+                    console.print(status["text"], soft_wrap=True)
 
-            with Live(status["text"], console=console, transient=True,
-                      refresh_per_second=4, redirect_stdout=False) as live:
-                res = run_job(job, progress)
+            try:
+                with Live(status["text"], console=console, transient=True,
+                          refresh_per_second=4, redirect_stdout=False) as live:
+                    res = run_job(job, progress)
+            except KeyboardInterrupt:
+                console.print(styled(("interrupted: ", "yellow"), f"{status['text']}; no verdict"), soft_wrap=True)
+                raise typer.Exit(130)
             results.append(res)
             saved = {}
             if not no_traces:

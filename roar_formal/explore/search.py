@@ -113,7 +113,7 @@ class Explorer:
 
     def run(self, budget: Budget = Budget()) -> StateGraph:
         g = self.graph
-        t0 = time.perf_counter()
+        t0 = self._running_since = time.perf_counter()
         last_report = t0
         pop = self.frontier.popleft if self.order == "bfs" else self.frontier.pop
         system = self.system
@@ -155,6 +155,7 @@ class Explorer:
             g.complete = True
             g.stop_reason = ""
         self.elapsed += time.perf_counter() - t0
+        self._running_since = None
         return g
 
     def _expand_reduced(self, state, sid: int) -> tuple[list, list]:
@@ -178,7 +179,9 @@ class Explorer:
 
     def stats(self) -> dict:
         g = self.graph
-        el = self.elapsed + 1e-9
+        # time so far: earlier runs, plus this one while it runs (a rate over 0 s is no rate)
+        running = getattr(self, "_running_since", None)
+        el = self.elapsed + (time.perf_counter() - running if running is not None else 0.0) + 1e-9
         out = {"states": g.n_states, "transitions": g.n_edges, "frontier": len(self.frontier),
                "seconds": el, "states_per_s": g.n_states / el, "memory_mb": current_rss_mb()}
         if self.reduce:

@@ -42,10 +42,19 @@ from hypothesis import settings as Settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
-from ..errors import RoarError
+from ..errors import Pos, RoarError
 from .api import AgentSpec, load_spec
 
 __all__ = ["RoarMachine"]
+
+
+def _class_pos(cls: type) -> Pos:
+    """Where a machine class is written: its ``never`` patterns are reported there."""
+    import inspect
+    try:
+        return Pos(inspect.getsourcefile(cls) or "<python>", inspect.getsourcelines(cls)[1], 1)
+    except (OSError, TypeError):
+        return Pos(cls.__module__, 1, 1)
 
 
 class _Setup:
@@ -72,13 +81,13 @@ class _Setup:
                                  pairs)
         never = list(cls.never)
         self.never = make_never(self.model.text, str(spec.path or spec.name),
-                                [(p, None) for p in never]) if never else None
+                                [(p, _class_pos(cls)) for p in never]) if never else None
         self.outcome_rules = {}
         for fc, (owner, name) in self.model.functions.items():
             self.outcome_rules[f"outcome_{fc}_"] = f"{owner}::{name}" if owner else name
         # a state is a function of the choices that led to it: shrinking replays the same prefixes
         # again and again, so successors and enabled steps are cached by path
-        self.states: dict[tuple, tuple] = {(): (self.start, None, None)}
+        self.states: dict[tuple, tuple] = {}
         self.moves: dict[tuple, list] = {}
 
     def outcome_of(self, rule_name: str) -> Optional[str]:
@@ -88,33 +97,29 @@ class _Setup:
                 return f"{fn} -> {rule_name[len(prefix):]}"
         return None
 
-    def enabled(self, path: tuple) -> list:
-        """The enabled steps of the state at ``path``: (choice, agent, outcome label or None)."""
+    def enabled(self, path: tuple, state: Any) -> list:
+        """The enabled steps of ``state``, reached by ``path``: (choice, agent, outcome label or None)."""
         out = self.moves.get(path)
         if out is None:
-            state = self.states[path][0]
             out = [(c, self.system.agent_of(c, state), self.outcome_of(c.rule))
                    for c in self.system.program.steps(state)]
             self._remember(self.moves, path, out)
         return out
 
-    def successor(self, path: tuple, k: int) -> tuple:
-        """(state, engine step, rule) after taking enabled step ``k`` at ``path``."""
+    def successor(self, path: tuple, state: Any, k: int) -> tuple:
+        """(state, engine step, rule) after taking enabled step ``k`` of ``state``, reached by ``path``."""
         key = path + (k,)
         hit = self.states.get(key)
         if hit is None:
-            succ = self.system._successor(self.states[path][0], self.enabled(path)[k][0])
+            succ = self.system._successor(state, self.enabled(path, state)[k][0])
             hit = (succ.state, succ.step, succ.label)
             self._remember(self.states, key, hit)
         return hit
 
     @staticmethod
     def _remember(cache: dict, key: tuple, value: Any) -> None:
-        if len(cache) > 50_000:   # keep memory bounded: start over (the start state stays)
-            start = cache.get(())
+        if len(cache) > 50_000:   # keep memory bounded: start over
             cache.clear()
-            if start is not None:
-                cache[()] = start
         cache[key] = value
 
 
@@ -164,7 +169,7 @@ class RoarMachine(RuleBasedStateMachine):
         return self._s.model
 
     def _choices(self) -> list:
-        return self._s.enabled(self._path)
+        return self._s.enabled(self._path, self.state)
 
     @property
     def quiescent(self) -> bool:
@@ -213,7 +218,7 @@ class RoarMachine(RuleBasedStateMachine):
 
     def _take(self, k: int) -> list:
         """Take enabled step ``k``; the ROAR events it made."""
-        state, step, rule_name = self._s.successor(self._path, k)
+        state, step, rule_name = self._s.successor(self._path, self.state, k)
         self._path += (k,)
         self.state = state
         self.rules.append(rule_name)

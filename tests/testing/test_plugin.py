@@ -36,6 +36,25 @@ def test_the_plugin_is_registered_through_its_entry_point():
     assert eps.get("roar_formal") == "roar_formal.testing.plugin"
 
 
+def test_the_files_the_docs_quote_are_the_example_files(root):
+    """``<!-- file: P -->``: the block is file P; ``<!-- part of: P -->``: its lines are lines of P, in order."""
+    text = (root / "docs" / "testing.md").read_text(encoding="utf-8")
+    quoted = re.findall(r"<!-- (file|part of): (\S+) -->\n```[a-z]*\n(.*?)```", text, re.S)
+    assert len(quoted) >= 5
+    for kind, path, block in quoted:
+        content = (root / path).read_text(encoding="utf-8")
+        if kind == "file":
+            assert block == content, path
+        else:
+            lines = [x.strip() for x in content.splitlines()]
+            i = 0
+            for want in block.splitlines():
+                while i < len(lines) and lines[i] != want.strip():
+                    i += 1
+                assert i < len(lines), f"{path}: docs/testing.md quotes a line it does not have: {want!r}"
+                i += 1
+
+
 def test_the_two_copies_of_the_example_test_are_the_same_test(examples):
     for name in ("test_pick.py", "conftest.py"):
         assert (examples / "pick" / name).read_text() == (examples / "pick_fixed" / name).read_text()

@@ -6,6 +6,7 @@ it does not depend on how far shrinking went).
 """
 
 import importlib.util
+import inspect
 import re
 
 import pytest
@@ -102,3 +103,12 @@ def test_helpers_read_the_state_and_mistakes_are_reported(examples):
 
     with pytest.raises(RoarError, match="granularity must be 'event' or 'step'"):
         Odd()
+
+    line = inspect.currentframe().f_lineno + 2   # a bad pattern is reported where the class is written
+
+    class BadPattern(Reader):
+        never = ["nosuch X"]
+
+    with pytest.raises(RoarError, match="invariant pattern 'nosuch X': unknown type family 'nosuch'") as e:
+        BadPattern()
+    assert (e.value.pos.file, e.value.pos.line) == (__file__, line)
