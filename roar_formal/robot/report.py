@@ -132,8 +132,3 @@ def draw_robot(path_png, robot, title: str, marks=()) -> None:
         return
     draw_run(path_png, robot.world.geometry(), grid=robot.picture_grid(), driven=robot.trajectory, marks=marks,
              title=title)
-
-
-def pose_text(pose) -> str:
-    x, y, th = pose
-    return f"({x:.2f}, {y:.2f}, {math.degrees(th):.0f}°)"
