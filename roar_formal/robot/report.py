@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import re
-import math
 from pathlib import Path
 from typing import Optional
 
