@@ -15,6 +15,7 @@ from rich.text import Text
 
 from ..console import make_console, styled
 from ..errors import RoarError
+from .report import counterexample_report, print_counterexample
 
 
 _STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
@@ -37,6 +38,12 @@ def register(app: typer.Typer) -> None:
         traces: Path = typer.Option(Path("roar-traces"), "--traces",
                                     help="Folder where counterexample traces are written."),
         no_traces: bool = typer.Option(False, "--no-traces", help="Do not write counterexample traces."),
+        png: Optional[Path] = typer.Option(None, "--png", help="Folder for a message sequence chart (PNG) of "
+                                           "each counterexample."),
+        svg: Optional[Path] = typer.Option(None, "--svg", help="Folder for a message sequence chart (SVG) of "
+                                           "each counterexample."),
+        dot: Optional[Path] = typer.Option(None, "--dot", help="Folder for the explored state graph (DOT) of each "
+                                           "counterexample's job, its path highlighted (small models only)."),
     ) -> None:
         """Run verification jobs; exit 0 only when every verdict is the expected one.
 
@@ -58,6 +65,10 @@ def register(app: typer.Typer) -> None:
             raise RoarError(f"--max-states {max_states}: expected a positive number of states")
         if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
             raise RoarError(f"--max-seconds {max_seconds}: expected a positive, finite number of seconds")
+        from .pictures import check_output_folder, write_pictures
+        for folder, opt in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
+            if folder is not None:   # checked before any work starts
+                check_output_folder(folder, opt, list(paths))
         files = find_jobs([p for p in paths if not is_model_path(p)]) if len(models) < len(paths) else []
         # every job file is checked before anything runs
         jobs = [load_job(f) for f in files] + [job_for_model(p, request, props) for p in models]
@@ -100,6 +111,8 @@ def register(app: typer.Typer) -> None:
                     if v.counterexample is not None:
                         saved[p] = save_counterexample(res, p, traces)
             res.saved = saved
+            res.pictures = write_pictures(res, png, svg, dot, tuple(paths) + tuple(files)) \
+                if (png or svg or dot) else {}
             if not as_json:
                 _print_result(console, res, verbose)
         if as_json:
@@ -182,73 +195,9 @@ def _print_result(console: Console, res, verbose: bool) -> None:
     for p, v in res.verdicts.items():
         console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}", markup=True)
         if v.counterexample is not None:
-            _print_cx(console, res, p, verbose)
+            print_counterexample(console, res, p, verbose)
     for m in res.unexpected:
         console.print(f"  {m}", style="red")
-
-
-def _print_cx(console: Console, res, prop: str, verbose: bool) -> None:
-    from .check import counterexample_steps, roar_events
-
-    v = res.verdicts[prop]
-    steps = counterexample_steps(res.graph, v, res)
-    events = roar_events(res, v)
-    for i, s in enumerate(steps, 1):
-        if s["loop"] and (i == 1 or not steps[i - 2]["loop"]):
-            console.print("    -- cycle (repeats forever) --", style="yellow")
-        if events is not None:
-            # ROAR level: one line per event; the CLF rule of its step with --verbose
-            for ev in events[i - 1]:
-                rule = f"  [dim]({escape(s['rule'])})[/]" if verbose else ""
-                console.print(f"    {i:>3}. {escape(ev.agent):<12} {escape(ev.text)}{rule}", markup=True)
-            if verbose and not events[i - 1]:
-                console.print(f"    {i:>3}. [dim]\\[{escape(s['group'])}] {escape(s['rule'])}[/]", markup=True)
-            continue
-        line = f"    {i:>3}. \\[{escape(s['group'])}] {escape(s['rule'])}"
-        if verbose:
-            line += f"  {escape(', '.join(s.get('consumed', [])))} -> {escape(', '.join(s.get('produced', [])))}"
-        console.print(line, markup=True)
-    if v.counterexample.kind == "path" and res.graph.describe_state:
-        final = res.graph.describe_state(v.counterexample.final_state)
-        if events is not None and not verbose:
-            final = _roar_state(res, v.counterexample.final_state)
-        console.print("    final state: " + "; ".join(x for x in final if not x.startswith("!")))
-    saved = getattr(res, "saved", {}).get(prop)
-    if saved:
-        job = res.job
-        console.print(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model})")
-
-
-def _roar_state(res, sid: int) -> list[str]:
-    """The final state of a ROAR counterexample, briefly: requests and their states, waiting recipes."""
-    model, _start, explorer = res.roar
-    ctx = explorer.states[sid]
-    out = []
-    rq = {}
-    for _m, f, _n in ctx.facts():
-        h = getattr(f.head, "name", None)
-        if h == "rq":
-            rq[f.args[0]] = model.csts.get(f.args[2].head.name, ("?", "?"))
-    for _m, f, _n in ctx.facts():
-        h = getattr(f.head, "name", None)
-        if h == "rs" and f.args[0] in rq:
-            agent, text = rq[f.args[0]]
-            out.append(f"{agent}: {text} is {f.args[1].head.name[2:]}")
-        elif h == "act":
-            agent, task, recipe = model.recipes.get(f.args[3].head.name, ("?", "?", "?"))
-            out.append(f"{agent}: recipe {recipe} of task {task} is live")
-        elif h == "ctl":
-            mode = getattr(f.args[1].head, "name", "")
-            site = model.sites.get(getattr(f.args[2].args[0].head, "name", "")) if f.args[2].args else None
-            where = f"{site.agent}.{site.task}.{site.recipe} at {site.pos.line}:{site.pos.col} ({site.text})" \
-                if site else "a recipe"
-            if mode == "m_block":
-                out.append(f"{where}: blocked until a variable it reads changes")
-            elif mode == "m_make":
-                out.append(f"{where.split(' at ')[0]}: waiting for a make")
-            elif mode == "m_call":
-                out.append(f"{where.split(' at ')[0]}: waiting for a primitive")
-    return sorted(out)
 
 
 def _summary(console: Console, results) -> None:
@@ -287,10 +236,16 @@ def _json(r) -> dict:
     for p, v in r.verdicts.items():
         d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
         if v.counterexample is not None:
-            d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r)}
+            rep = counterexample_report(r, p)
+            d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r),
+                                   "report": rep}
             saved = getattr(r, "saved", {}).get(p)
             if saved:
                 d["trace"] = str(saved)
+            pics = getattr(r, "pictures", {}).get(p)
+            if pics:
+                d["pictures"] = [str(x) for x in pics if not isinstance(x, str)]
+                d["picture_notes"] = [x for x in pics if isinstance(x, str)]
         out["verdicts"][p] = d
     return out
 

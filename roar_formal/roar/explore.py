@@ -273,6 +273,11 @@ def _remove(ctx: Context, fam: str, pred) -> None:
 
 def path_events(model: CompiledModel, start: Context, steps: list) -> list:
     """The ROAR-level events of a path of engine steps from ``start`` (counterexamples)."""
+    return path_narration(model, start, steps)[0]
+
+
+def path_narration(model: CompiledModel, start: Context, steps: list):
+    """(events, narrator): the narrator keeps the request labels, to name requests of the final state."""
     from .run import Narrator
     nar = Narrator(model)
     for _m, f, _n in start.facts():
@@ -282,4 +287,4 @@ def path_events(model: CompiledModel, start: Context, steps: list) -> list:
     out = []
     for i, step in enumerate(steps, 1):
         out.extend(nar.events(i, step))
-    return out
+    return out, nar

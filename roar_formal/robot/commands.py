@@ -225,6 +225,8 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
         named = header.get("spec")
         raise RoarError(f"{trace}: pass the spec to replay it on: --model SPEC"
                         + (f" (the trace was made from {named}; it is not opened from the trace)" if named else ""))
+    from .conform import check_records
+    check_records(records, str(trace))
     request = header.get("request")
     if not isinstance(request, str) or not request:
         raise RoarError(f"{trace}: the trace header records no request: is it a trace of a ROAR spec?")

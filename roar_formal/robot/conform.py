@@ -32,6 +32,7 @@ from typing import Callable, Optional
 
 from ..clf.printer import show
 from ..clf.terms import Root
+from ..errors import Pos, RoarError
 from .activity import CallResult
 from .sim import classify
 
@@ -97,6 +98,47 @@ def _score(want: tuple, got: tuple) -> tuple[int, int]:
                 gv.remove(_shape(x))
                 same += 1
     return exact, same
+
+
+def check_records(records: list, file: str) -> None:
+    """Refuse, at its line, a robot trace record whose fields do not have the types the replay reads
+    (a trace is data from elsewhere: it is checked, never trusted)."""
+    def fail(n: int, what: str) -> None:
+        raise RoarError(f"robot trace record: {what}", Pos(file, n + 1, 1))
+
+    for n, rec in enumerate(records, 1):
+        if not isinstance(rec, dict):
+            fail(n, "expected a JSON object")
+        if not isinstance(rec.get("rule"), str):
+            fail(n, "expected 'rule' to be a string")
+        for key in ("consumed", "produced"):
+            v = rec.get(key, [])
+            if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+                fail(n, f"expected '{key}' to be a list of strings")
+        if not isinstance(rec.get("loop", False), bool):
+            fail(n, "expected 'loop' to be true or false")
+        ev = rec.get("event")
+        if ev is not None and (not isinstance(ev, dict) or any(not isinstance(ev.get(k, ""), str)
+                                                                for k in ("text", "agent", "kind"))):
+            fail(n, "expected 'event' to be null or an object whose 'kind', 'agent' and 'text' are strings")
+        call = rec.get("call")
+        if call is None:
+            continue
+        if not isinstance(call, dict):
+            fail(n, "expected 'call' to be an object")
+        if not isinstance(call.get("function"), str):
+            fail(n, "expected 'call.function' to be a string")
+        if not isinstance(call.get("args", []), list):
+            fail(n, "expected 'call.args' to be a list")
+        if call.get("forced") is not None and not isinstance(call.get("forced"), str):
+            fail(n, "expected 'call.forced' to be a string or null")
+        res = call.get("result")
+        if not isinstance(res, dict):
+            fail(n, "expected 'call.result' to be an object")
+        if not isinstance(res.get("failed", False), bool) or not isinstance(res.get("status", ""), str) \
+                or not isinstance(res.get("detail") or {}, dict):
+            fail(n, "expected 'call.result' to have 'failed' (true or false), 'status' (a string) and "
+                    "'detail' (an object)")
 
 
 def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelReplay:

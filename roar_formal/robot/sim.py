@@ -146,11 +146,7 @@ def classify(outcomes, result: CallResult, rty: Optional[str] = None) -> list[st
     out = []
     for o in outcomes:
         if o.covers is not None:
-            try:
-                hit = bool(o.covers(result))
-            except Exception as exc:   # the user's predicate failed: say which
-                raise RoarError(f"the covers predicate of outcome '{o.name}' failed on {result.as_json()}: "
-                                f"{type(exc).__name__}: {exc}") from None
+            hit = _covers(o, result)   # a predicate that fails on a value does not cover it
         else:
             hit = o.success == result.ok and (o.result is None or _same_value(o.result, result.value))
         if hit:

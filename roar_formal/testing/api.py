@@ -539,12 +539,12 @@ class Counterexample:
 
     def format(self, verbose: bool = False) -> str:
         """The verdict line and the counterexample, as ``roar-verify check`` prints them."""
-        from ..explore.commands import _print_cx
+        from ..explore.report import print_counterexample
         buf = io.StringIO()
         console = _console(buf)
         v = self.verdict
         console.print(f"  {self.prop}: {v.status} — {v.message}")
-        _print_cx(console, self.exploration.result, self.prop, verbose)
+        print_counterexample(console, self.exploration.result, self.prop, verbose)
         return buf.getvalue().rstrip("\n")
 
     def __str__(self) -> str:

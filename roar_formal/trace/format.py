@@ -29,20 +29,33 @@ from ..errors import Pos, RoarError
 VERSION = 1
 
 
+def write_atomic_bytes(path: str | Path, data: bytes) -> None:
+    """:func:`write_atomic` for bytes (pictures), with an unwritable path as a located error."""
+    path = Path(path)
+    try:
+        _write_atomic(path, data)
+    except OSError as exc:
+        raise RoarError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
 def write_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder.
+    """Write ``text`` to ``path`` atomically (see :func:`_write_atomic`)."""
+    _write_atomic(Path(path), text.encode("utf-8"))
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder.
 
     The temporary file is ``.NAME.HOST.PID-XXXXXXXX.tmp``: removed if the write fails or is
     interrupted (an exception, Ctrl-C, or SIGTERM through the command line's handler); one
     left behind by a killed process (SIGKILL, power loss) is removed by the next write in the
     same folder on the same host, once its process is gone."""
-    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(path.parent)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}.{os.getpid()}-", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)

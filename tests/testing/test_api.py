@@ -106,8 +106,9 @@ def test_a_counterexample_prints_exactly_as_roar_verify_check(models, root, run_
     assert code == 0
     lines = out.splitlines()
     start = lines.index(next(x for x in lines if x.startswith("  deadlock: violated")))
-    end = next(i for i in range(start, len(lines)) if lines[i].startswith("    final state:"))
-    assert cx.format() == "\n".join(lines[start:end + 1])
+    end = next(i for i in range(start, len(lines)) if lines[i].startswith("  livelock:"))
+    assert any(x.startswith("    wait-for cycle: arm -> door -> arm") for x in lines[start:end])
+    assert cx.format() == "\n".join(lines[start:end])
     assert any(ev.text == "make R2 to arm: arm::parked == true" for evs in cx.events for ev in evs)
     # saved, it replays on the engine through the command line
     path = cx.save(tmp_path)

@@ -26,7 +26,8 @@ def test_a_deadlock_fails_with_its_counterexample_and_a_trace(models, traces):
     assert msg.splitlines()[0] == f"deadlock violated on {spec.path}, request arm::started == true"
     assert "  deadlock: violated — deadlock reachable in 27 steps" in msg
     assert "     18. door         make R2 to arm: arm::parked == true" in msg
-    assert "final state: arm.park.fold at 33:13 (wait(door::open == true, 100))" in msg
+    assert "    final state:" in msg and "wait(door::open == true, 100): until a variable of door changes" in msg
+    assert "    wait-for cycle: arm -> door -> arm" in msg
     assert e.value.trace == traces / "mutual_make.deadlock.jsonl" and e.value.trace.is_file()
     assert f"trace: {e.value.trace}  (roar-verify replay {e.value.trace} --model {spec.path})" in msg
     header, steps = read_trace(e.value.trace)

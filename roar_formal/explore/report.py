@@ -1,0 +1,160 @@
+"""Counterexamples as people read them: one public place for the printed and the JSON form.
+
+``roar-verify check``, ``check --json``, the charts and the testing API all read the
+same :func:`counterexample_report`, so what a test asserts, what a CI log shows and
+what a picture draws agree. For jobs on a ROAR spec the report is at the ROAR level
+(per step the agent, its events and the variables it changed; the final state per
+agent; at a deadlock the blocked activities and the wait-for cycle); ROAR modules are
+imported inside functions only, so ``explore`` does not depend on ``roar`` at import.
+"""
+
+from __future__ import annotations
+
+from rich.console import Console
+from rich.markup import escape
+
+__all__ = ["counterexample_report", "print_counterexample"]
+
+
+def counterexample_report(res, prop: str) -> dict:
+    """The counterexample of ``prop`` in job result ``res`` as plain data (JSON-ready).
+
+    Keys: ``property``, ``shape`` (path or lasso), ``steps`` (each: ``step``, ``loop``,
+    ``group``, ``rule``, ``agent``, ``events``, ``changes``), ``requests`` (label ->
+    agent, constraint; ROAR only), ``final`` (per-agent table; ROAR only, else the facts),
+    ``deadlock`` (blocked activities, wait-for edges and cycle; deadlocks on a spec only)."""
+    from .check import counterexample_steps
+    v = res.verdicts[prop]
+    cx = v.counterexample
+    cache = getattr(res, "_cx_reports", None)
+    if cache is None:
+        cache = res._cx_reports = {}
+    if prop in cache:
+        return cache[prop]
+    recs = counterexample_steps(res.graph, v, res)
+    steps = []
+    for i, r in enumerate(recs, 1):
+        steps.append({"step": i, "loop": r["loop"], "group": r["group"], "rule": r["rule"], "agent": r["group"],
+                      "events": [], "changes": []})
+    out = {"property": prop, "shape": cx.kind, "steps": steps, "requests": {}, "final": None, "deadlock": None}
+    roar = getattr(res, "roar", None)
+    if roar is None:
+        if res.graph.describe_state:
+            out["final"] = {"facts": [x for x in res.graph.describe_state(cx.final_state) if not x.startswith("!")]}
+        cache[prop] = out
+        return out
+    from ..roar.explore import path_narration
+    from ..roar.report import decode_state, step_changes
+    model, start, explorer = roar
+    edges = list(cx.prefix) + list(cx.cycle)
+    engine_steps = [explorer.steps[e] for e in edges]
+    events, nar = path_narration(model, start, engine_steps)
+    for ev in events:
+        steps[ev.step - 1]["events"].append(ev.as_json())
+    for s, st in zip(steps, engine_steps):
+        s["changes"] = step_changes(model, st)
+    out["requests"] = {lab: {"agent": a, "constraint": t} for lab, (a, t) in sorted(
+        nar.req_info.items(), key=lambda kv: (len(kv[0]), kv[0]))}
+    final = decode_state(model, explorer.states[cx.final_state], nar.labels, nar.req_info)
+    out["final"] = final["agents"]
+    if cx.kind == "path" and prop == "deadlock":
+        blocked = [{"agent": a, **act} for a, row in final["agents"].items() for act in row["activities"]]
+        out["deadlock"] = {"blocked": blocked, "wait_for": final["wait_for"], "cycle": final["cycle"]}
+    cache[prop] = out
+    return out
+
+
+def print_counterexample(console: Console, res, prop: str, verbose: bool = False) -> None:
+    """Print the counterexample of ``prop`` as ``roar-verify check`` does (after the verdict line)."""
+    v = res.verdicts[prop]
+    rep = counterexample_report(res, prop)
+    is_roar = getattr(res, "roar", None) is not None
+    steps = rep["steps"]
+    from .check import counterexample_steps
+    raw = counterexample_steps(res.graph, v, res) if verbose and not is_roar else None
+    for i, s in enumerate(steps, 1):
+        if s["loop"] and (i == 1 or not steps[i - 2]["loop"]):
+            console.print("    -- cycle (repeats forever) --", style="yellow")
+        if not is_roar:
+            line = f"    {i:>3}. \\[{escape(s['group'])}] {escape(s['rule'])}"
+            if verbose:
+                r = raw[i - 1]
+                line += f"  {escape(', '.join(r.get('consumed', [])))} -> {escape(', '.join(r.get('produced', [])))}"
+            console.print(line, markup=True)
+            continue
+        rule = f"  [dim]({escape(s['rule'])})[/]" if verbose else ""
+        shown = [ev for ev in s["events"] if ev["kind"] != "write"]
+        for ev in shown:
+            console.print(f"    {i:>3}. {escape(ev['agent']):<12} {escape(ev['text'])}{rule}", markup=True)
+        for ch in s["changes"]:
+            lead = f"    {i:>3}. {escape(ch['agent']):<12}" if not shown else " " * 21
+            console.print(f"{lead} {escape(ch['var'])}: {escape(ch['old'])} -> {escape(ch['new'])}{rule}",
+                          markup=True)
+        if verbose and not shown and not s["changes"]:
+            console.print(f"    {i:>3}. [dim]\\[{escape(s['group'])}] {escape(s['rule'])}[/]", markup=True)
+    if is_roar:
+        _print_roar_final(console, rep, v.counterexample.kind)
+    elif v.counterexample.kind == "path" and rep["final"] is not None:
+        console.print("    final state: " + "; ".join(rep["final"]["facts"]))
+    for pic in getattr(res, "pictures", {}).get(prop, ()):
+        if isinstance(pic, str):
+            console.print(f"    {pic}", style="yellow", soft_wrap=True)
+        else:
+            console.print(f"    picture: {pic}")
+    saved = getattr(res, "saved", {}).get(prop)
+    if saved:
+        job = res.job
+        console.print(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model})")
+
+
+def _print_roar_final(console: Console, rep: dict, shape: str) -> None:
+    """The final state as a per-agent table, then the deadlock's wait-for cycle."""
+    head = "final state" if shape == "path" else "state where the cycle starts"
+    console.print(f"    {head}:")
+    rows = rep["final"]
+    width = max([len(a) for a in rows] + [5])
+    for agent, row in rows.items():
+        lines = []
+        vs = ", ".join(f"{k} = {val}" for k, val in sorted(row["variables"].items()))
+        lines.append(f"variables: {vs or '-'}")
+        for r in row["requests"]:
+            lines.append(f"request {r['request']} {r['constraint']}: {r['state']}")
+        for a in row["activities"]:
+            handles = f" (for {a['request']})" if a.get("request") else ""
+            what = f": {a['text']}" if a.get("text") else ""
+            lines.append(f"{a['status']}: {a['task']}.{a['recipe']}{handles}{what}")
+        for k, text in enumerate(lines):
+            name = agent if k == 0 else ""
+            console.print(f"      {escape(name):<{width}}  {escape(text)}", markup=True, soft_wrap=True)
+    dl = rep.get("deadlock")
+    if dl is None:
+        return
+    if dl["cycle"]:
+        cyc = dl["cycle"]
+        console.print(f"    wait-for cycle: {' -> '.join(cyc + [cyc[0]])}", style="red")
+        pairs = list(zip(cyc, cyc[1:] + cyc[:1]))
+        for a, b in pairs:
+            why = "; ".join(e["why"] for e in dl["wait_for"] if e["from"] == a and e["to"] == b)
+            console.print(f"      {escape(a)} waits for {escape(b)}: {escape(why)}", markup=True, soft_wrap=True)
+    else:
+        console.print("    no wait-for cycle between agents: the blocked activities wait for no agent "
+                      "(a request left unhandled, or a wait on the agent's own variables)", style="red")
+
+
+def wait_for_pairs(rep: dict) -> list[tuple[str, str]]:
+    """The edges of the deadlock's wait-for cycle, in order (for charts)."""
+    dl = rep.get("deadlock") or {}
+    cyc = dl.get("cycle") or []
+    return list(zip(cyc, cyc[1:] + cyc[:1]))
+
+
+def chart_title(res, prop: str) -> str:
+    """A line naming the job, the property and the verdict, for pictures."""
+    v = res.verdicts[prop]
+    return f"{res.job.name}: {prop} {v.status}"
+
+
+def safe_name(res, prop: str) -> str:
+    """The file stem of a job's picture or trace: the job name with unsafe characters replaced."""
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in res.job.name) + f".{prop}"
+
