@@ -98,3 +98,15 @@ def test_checking_without_a_job_file_refuses_what_it_cannot_mean(capsys):
     assert code == 2 and "a job file says its own" in err
     code, out, err = run_check(capsys, ROOT / "models" / "philosophers" / "ok.clf", "--max-seconds", "nan")
     assert code == 2 and "--max-seconds" in err
+
+
+def test_the_readme_deadlock_excerpt_is_what_check_prints(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## What a finding looks like", 1)[1]
+    block = section.split("(excerpt):\n\n```\n", 1)[1].split("```", 1)[0]
+    code, out, err = run_check(capsys, ROOT / "models" / "faulty" / "mutual_make.roar", "-r", "arm::started == true")
+    assert code == 1
+    printed = [line.rstrip() for line in out.splitlines()]
+    shown = [line.rstrip() for line in block.splitlines() if line.strip()]
+    assert len(shown) >= 5 and [line for line in shown if line not in printed] == []
