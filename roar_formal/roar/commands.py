@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -25,15 +24,8 @@ def load_registry(path: Optional[Path]):
     """Import a functional-layer module and build its registry (``registry()``, or ``REGISTRY``)."""
     if path is None:
         return None
-    name = f"roar_functional_{abs(hash(str(path.resolve())))}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    if spec is None or spec.loader is None:
-        raise RoarError(f"{path}: cannot be imported as a Python module")
-    mod = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(mod)
-    except Exception as exc:
-        raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
+    from .functional import import_module
+    mod = import_module(path)
     make = getattr(mod, "registry", None)
     if callable(make):
         try:

@@ -34,7 +34,7 @@ from ..errors import Pos, RoarError
 from . import ast as a
 
 __all__ = ["Outcome", "Primitive", "Registry", "Binding", "BindingError", "SUCCESS", "FAILURE",
-           "DEFAULT_OUTCOMES", "find_module", "module_candidates"]
+           "DEFAULT_OUTCOMES", "find_module", "module_candidates", "import_module"]
 
 
 @dataclass(frozen=True)
@@ -265,6 +265,23 @@ def find_module(spec_path, given=None):
             raise RoarError(f"{given}: no such functional-layer module")
         return Path(given)
     return next((c for c in module_candidates(spec_path) if c.is_file()), None)
+
+
+def import_module(path):
+    """Import a functional-layer module from its file (the one Python a spec named on the command
+    line brings); a module that fails to import is the user's error, with the file named."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(path)
+    spec = importlib.util.spec_from_file_location(f"roar_functional_{abs(hash(str(path.resolve())))}", path)
+    if spec is None or spec.loader is None:
+        raise RoarError(f"{path}: cannot be imported as a Python module")
+    mod = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as exc:
+        raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
+    return mod
 
 
 def _ekey(e: RoarError):

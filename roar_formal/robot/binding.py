@@ -11,13 +11,12 @@ registry's, so a difference would compare two different abstractions.
 
 from __future__ import annotations
 
-import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
 from ..errors import RoarError
-from ..roar.functional import Registry, find_module, module_candidates
+from ..roar.functional import Registry, find_module, import_module, module_candidates
 
 __all__ = ["RobotBinding", "load_robot_binding", "functional_module_of"]
 
@@ -41,15 +40,7 @@ def functional_module_of(spec: Path, given: Optional[Path] = None) -> Path:
 def load_robot_binding(spec: Path, given: Optional[Path] = None) -> RobotBinding:
     """Import the spec's functional-layer module (the user named the spec: this is the one code we run)."""
     path = functional_module_of(spec, given)
-    name = f"roar_robot_binding_{abs(hash(str(path.resolve())))}"
-    mspec = importlib.util.spec_from_file_location(name, path)
-    if mspec is None or mspec.loader is None:
-        raise RoarError(f"{path}: cannot be imported as a Python module")
-    mod = importlib.util.module_from_spec(mspec)
-    try:
-        mspec.loader.exec_module(mod)
-    except Exception as exc:
-        raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
+    mod = import_module(path)
     make_robot = getattr(mod, "robot_registry", None)
     if not callable(make_robot):
         raise RoarError(f"{path}: defines no robot_registry(): the spec's primitives are not bound to the robot "

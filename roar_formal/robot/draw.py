@@ -12,13 +12,11 @@ from __future__ import annotations
 
 import io
 import math
-import os
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from ..errors import RoarError
+from ..trace.format import write_atomic_bytes
 
 WALL = "#222222"
 OBSTACLE = "#8c8c8c"
@@ -33,30 +31,6 @@ PLANNED = ("#2ca02c", "#9467bd", "#17becf", "#e377c2", "#bcbd22", "#7f7f7f")
 MAX_EVENTS = 12
 EVENT_FONT = 6.5
 DPI = 100
-
-
-def write_atomic_bytes(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder (removed on failure)."""
-    path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    except OSError as exc:
-        raise RoarError(f"{path}: cannot write: {exc}") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        if isinstance(exc, OSError):
-            raise RoarError(f"{path}: cannot write: {exc}") from None
-        raise
 
 
 @contextmanager

@@ -46,7 +46,7 @@ def write_atomic(path: str | Path, text: str) -> None:
 def _write_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder.
 
-    The temporary file is ``.NAME.HOST.PID-XXXXXXXX.tmp``: removed if the write fails or is
+    The temporary file is ``.NAME.HOST.PID-<random>.tmp``: removed if the write fails or is
     interrupted (an exception, Ctrl-C, or SIGTERM through the command line's handler); one
     left behind by a killed process (SIGKILL, power loss) is removed by the next write in the
     same folder on the same host, once its process is gone."""

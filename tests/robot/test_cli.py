@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 
-from roar_formal.cli import main
 from roar_formal.robot.commands import prepare
 from roar_formal.robot.sim import simulate
 from roar_formal.trace.format import read_trace
@@ -26,25 +25,13 @@ REQ_RETRY = "hand::holding == true"
 LINE = re.compile(r"^ *(\d+) +(\d+\.\d\d)s (\S+) +(.*?)(   @ \(.*\))?$")
 
 
-@pytest.fixture(autouse=True)
-def _plain_console(monkeypatch):
-    for var in ("FORCE_COLOR", "TTY_COMPATIBLE", "TTY_INTERACTIVE", "ROAR_DEBUG"):
-        monkeypatch.delenv(var, raising=False)
-    monkeypatch.setenv("COLUMNS", "400")
-    monkeypatch.setenv("NO_COLOR", "1")
+@pytest.fixture
+def cli(roar_cli):
+    """The shared in-process command line (tests/conftest.py), called as ``cli(capsys, *argv)``."""
+    return lambda _capsys, *argv: roar_cli(*argv)
 
 
-def cli(capsys, *argv) -> tuple[int, str, str]:
-    code = 0
-    try:
-        main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def test_simulate_prints_the_run_writes_its_trace_and_picture(capsys, tmp_path):
+def test_simulate_prints_the_run_writes_its_trace_and_picture(cli, capsys, tmp_path):
     trace, png = tmp_path / "door.jsonl", tmp_path / "door.png"
     code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ,
                          "--fault", "door_closes", "--trace", trace, "--png", png)
@@ -66,14 +53,14 @@ def test_simulate_prints_the_run_writes_its_trace_and_picture(capsys, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_simulate_exits_1_when_the_request_does_not_finish(capsys):
+def test_simulate_exits_1_when_the_request_does_not_finish(cli, capsys):
     code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ,
                          "--fault", "door_stays_closed")
     assert code == 1
     assert "request running at t = 90.00 s" in out and "horizon of 90 s reached" in out
 
 
-def test_simulate_refuses_bad_input_with_a_location(capsys, tmp_path):
+def test_simulate_refuses_bad_input_with_a_location(cli, capsys, tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('name = "x"\nbounds = [0.0, 0.0, 5.0]\n')
     code, out, err = cli(capsys, "simulate", DOOR, "-s", bad, "-r", DOOR_REQ)
@@ -92,7 +79,7 @@ def test_simulate_refuses_bad_input_with_a_location(capsys, tmp_path):
     assert code == 2 and "refusing to overwrite" in err
 
 
-def test_conform_reports_outcomes_per_primitive_and_exits_0_when_sound(capsys):
+def test_conform_reports_outcomes_per_primitive_and_exits_0_when_sound(cli, capsys):
     code, out, err = cli(capsys, "conform", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--runs", "2",
                          "--fault", "door_closes", "--json")
     assert code == 0, err
@@ -103,7 +90,7 @@ def test_conform_reports_outcomes_per_primitive_and_exits_0_when_sound(capsys):
     assert "not_driving" in rep["never"]["base::drive"]                 # a warning, not an error
 
 
-def test_replay_of_a_robot_trace_needs_the_spec_and_refuses_a_stale_one(capsys, tmp_path):
+def test_replay_of_a_robot_trace_needs_the_spec_and_refuses_a_stale_one(cli, capsys, tmp_path):
     trace = tmp_path / "door.jsonl"
     assert cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--trace", trace)[0] == 0
     code, out, err = cli(capsys, "replay", trace)
@@ -120,7 +107,7 @@ def test_replay_of_a_robot_trace_needs_the_spec_and_refuses_a_stale_one(capsys, 
     assert code == 0
 
 
-def test_replay_of_an_edited_robot_trace_names_the_step(capsys, tmp_path):
+def test_replay_of_an_edited_robot_trace_names_the_step(cli, capsys, tmp_path):
     trace = tmp_path / "door.jsonl"
     assert cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--trace", trace)[0] == 0
     lines = trace.read_text().splitlines()
@@ -136,7 +123,7 @@ def test_replay_of_an_edited_robot_trace_names_the_step(capsys, tmp_path):
     assert "declared outcomes of base::drive: driving, not_driving" in out
 
 
-def test_the_door_excerpt_in_the_docs_is_what_simulate_prints(capsys):
+def test_the_door_excerpt_in_the_docs_is_what_simulate_prints(cli, capsys):
     doc = (ROOT / "docs" / "robot.md").read_text()
     block = doc.split("An excerpt:\n\n```\n", 1)[1].split("```", 1)[0]
     code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--fault", "door_closes")

@@ -159,7 +159,8 @@ def test_failed_write_keeps_earlier_file(tmp_path, monkeypatch):
 
     def boom(src, dst):
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr(draw.os, "replace", boom)
+    import roar_formal.trace.format as trace_format   # the project's one atomic writer
+    monkeypatch.setattr(trace_format.os, "replace", boom)
     with pytest.raises(RoarError, match="cannot write"):
         draw.draw_run(out, geometry(), title="new")
     assert out.read_bytes() == before

@@ -15,7 +15,6 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from roar_formal.cli import main
 from roar_formal.explore.check import run_job, save_counterexample
 from roar_formal.explore.jobs import load_job
 from roar_formal.roar.explore import path_events
@@ -35,24 +34,14 @@ RUNS = [
 ]
 
 
-def cli(capsys, *argv):
-    code = 0
-    try:
-        main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-@pytest.fixture(autouse=True)
-def _wide(monkeypatch):
-    monkeypatch.setenv("COLUMNS", "400")
-    monkeypatch.setenv("NO_COLOR", "1")
+@pytest.fixture
+def cli(roar_cli):
+    """The shared in-process command line (tests/conftest.py), called as ``cli(capsys, *argv)``."""
+    return lambda _capsys, *argv: roar_cli(*argv)
 
 
 @pytest.mark.parametrize("spec,request_", RUNS, ids=[p.name.split(".")[0] for p, _r in RUNS])
-def test_every_bundled_run_is_a_conforming_task_tree(capsys, tmp_path, spec, request_):
+def test_every_bundled_run_is_a_conforming_task_tree(cli, capsys, tmp_path, spec, request_):
     trace = tmp_path / "run.jsonl"
     assert cli(capsys, "run", spec, "-r", request_, "--trace", trace)[0] == 0
     report = check_trace(trace)
@@ -65,7 +54,7 @@ def test_every_bundled_run_is_a_conforming_task_tree(capsys, tmp_path, spec, req
     assert code == 0 and f"{len(report.tree.messages)} messages" in out and "no violations" in out
 
 
-def test_a_robot_run_is_a_task_tree_with_its_simulated_times(capsys, tmp_path):
+def test_a_robot_run_is_a_task_tree_with_its_simulated_times(cli, capsys, tmp_path):
     trace = tmp_path / "robot.jsonl"
     code, _out, err = cli(capsys, "simulate", MODELS / "pick_place.roar", "-s", MODELS / "scenarios" / "gripper.toml",
                           "-r", "carrier::delivered == true", "--trace", trace)
@@ -76,7 +65,7 @@ def test_a_robot_run_is_a_task_tree_with_its_simulated_times(capsys, tmp_path):
     assert max(ends) > 10                            # seconds of simulated time, not step numbers
 
 
-def test_the_ordered_pick_counterexample_breaks_sequential_achievement(capsys, tmp_path):
+def test_the_ordered_pick_counterexample_breaks_sequential_achievement(cli, capsys, tmp_path):
     res = run_job(load_job(ROOT / "checker" / "ordered_pick.toml"))
     trace = save_counterexample(res, "sequential-achievement", tmp_path)
     code, out, err = cli(capsys, "tca-check", trace)
@@ -89,7 +78,7 @@ def test_the_ordered_pick_counterexample_breaks_sequential_achievement(capsys, t
     assert f"SeqAch({a}, {b})" in out
 
 
-def test_a_trace_without_task_tree_messages_is_an_error(capsys, tmp_path):
+def test_a_trace_without_task_tree_messages_is_an_error(cli, capsys, tmp_path):
     trace = tmp_path / "empty.jsonl"
     trace.write_text('{"trace": "roar-formal", "version": 1, "kind": "roar-run"}\n'
                      '{"step": 1, "rule": "r", "consumed": [], "produced": [], "event": null}\n')

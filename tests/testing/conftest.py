@@ -32,21 +32,10 @@ def plain_console(monkeypatch):
     monkeypatch.setenv("NO_COLOR", "1")
 
 
-def cli(capsys, *argv) -> tuple[int, str, str]:
-    """Run ``roar-verify`` in-process: (exit status, stdout, stderr)."""
-    from roar_formal.cli import main
-    code = 0
-    try:
-        main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 @pytest.fixture
-def run_cli(capsys, plain_console):
-    return lambda *argv: cli(capsys, *argv)
+def run_cli(roar_cli, plain_console):
+    """The shared in-process command line (tests/conftest.py), with this folder's wider lines."""
+    return roar_cli
 
 
 def _norm(line: str) -> str:
