@@ -262,15 +262,20 @@ class ConformReport:
     declared: dict = field(default_factory=dict)    # primitive -> [outcome names]
 
     @property
+    def checked(self) -> bool:
+        """Did the runs call the functional layer at all? Without a call there is nothing to conform."""
+        return any(r.calls for r in self.runs)
+
+    @property
     def sound(self) -> bool:
-        return all(not r.uncovered and r.divergence is None for r in self.runs)
+        return self.checked and all(not r.uncovered and r.divergence is None for r in self.runs)
 
     def never(self) -> dict:
         return {p: [o for o in outs if not self.seen.get(p, {}).get(o)] for p, outs in self.declared.items()
                 if any(not self.seen.get(p, {}).get(o) for o in outs)}
 
     def as_json(self) -> dict:
-        return {"spec": self.spec, "scenario": self.scenario, "sound": self.sound,
+        return {"spec": self.spec, "scenario": self.scenario, "sound": self.sound, "checked": self.checked,
                 "runs": [r.as_json() for r in self.runs],
                 "outcomes": {p: {o: self.seen.get(p, {}).get(o, 0) for o in outs}
                              for p, outs in self.declared.items()},
@@ -293,8 +298,12 @@ class ConformReport:
             if r.divergence is not None and not r.uncovered:
                 out.append((f"error: seed {r.seed}: the robot run is not a path of the model:", "red"))
                 out += [(f"  {x}", "red") for x in r.divergence.lines()]
-        out.append(("sound for these runs: every result covered, every run a path of the model" if self.sound
-                    else "NOT sound: see the errors above", "green" if self.sound else "red"))
+        if not self.checked:
+            out.append(("nothing checked: no run called a primitive on the robot (is the request one the spec "
+                        "handles with its functional layer?)", "red"))
+        else:
+            out.append(("sound for these runs: every result covered, every run a path of the model" if self.sound
+                        else "NOT sound: see the errors above", "green" if self.sound else "red"))
         return out
 
 

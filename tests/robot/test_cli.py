@@ -132,3 +132,10 @@ def test_the_door_excerpt_in_the_docs_is_what_simulate_prints(cli, capsys):
     shown = [line for line in block.splitlines() if line.strip() and line.strip() != "..."]
     assert len(shown) > 10
     assert [line for line in shown if line not in printed] == []
+
+
+def test_conform_with_no_primitive_call_checked_nothing_and_says_so(cli, capsys):
+    # `written_holds`: the request already holds, so no recipe runs and nothing calls the robot
+    code, out, err = cli(capsys, "conform", MODELS / "pick_place.roar", "-s", SCEN / "gripper.toml",
+                         "-r", "gripper::holding == false", "--runs", "1", "--no-random-faults")
+    assert code == 1 and "nothing checked: no run called a primitive" in out
