@@ -144,6 +144,9 @@ def make_never(program_text: str, file: str, patterns: list) -> Callable[[Contex
 
 
 def run_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
+    if getattr(job, "robot", None) is not None:
+        from ..robot.check import run_robot_job   # the robot is the functional layer (robot/check.py)
+        return with_big_stack(run_robot_job, job, on_progress)
     if job.is_roar:
         return with_big_stack(_run_roar_job, job, on_progress)
     return with_big_stack(_run_job, job, on_progress)
@@ -434,6 +437,9 @@ def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
         header_pairs = {"seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text] for p in result.roar[2].system.pairs]}
     else:
         header_pairs = {}
+    robot = getattr(result, "robot", None)
+    if robot is not None:   # robot-backed: what replay --on-robot needs to drive the same robot
+        header_pairs["robot"] = robot.header(job.robot.scenario)
     header = {"kind": "counterexample", "property": prop, **where, **header_pairs, "fingerprint": result.fingerprint,
               "job": str(result.job.path), "shape": v.counterexample.kind,
               "final_state": result.graph.describe_state(v.counterexample.final_state)

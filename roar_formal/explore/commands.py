@@ -192,10 +192,17 @@ def _print_result(console: Console, res, verbose: bool) -> None:
     g = res.graph
     console.print(f"{head} [bold]{escape(res.job.name)}[/]  ({g.n_states:,} states, {g.n_edges:,} transitions, "
                   f"{res.seconds:.2f} s, backend {res.backend})", markup=True)
+    robot = getattr(res, "robot", None)
+    if robot is not None:   # the abstraction is part of every robot-backed verdict: say it
+        console.print(f"  robot: {escape(robot.describe())}", markup=True, soft_wrap=True)
     for p, v in res.verdicts.items():
         console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}", markup=True)
         if v.counterexample is not None:
             print_counterexample(console, res, p, verbose)
+    if robot is not None and robot.comparison:
+        console.print("  abstract model vs robot:")
+        for p, a, r, why in robot.comparison:
+            console.print(f"    {p}: abstract {a}, robot {r} — {escape(why)}", markup=True, soft_wrap=True)
     for m in res.unexpected:
         console.print(f"  {m}", style="red")
 
@@ -233,6 +240,12 @@ def _json(r) -> dict:
            "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states, "transitions": r.graph.n_edges,
            "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4), "memory_mb": round(r.memory_mb, 1),
            "mismatches": r.mismatches, "verdicts": {}}
+    robot = getattr(r, "robot", None)
+    if robot is not None:
+        out["robot"] = {"setup": robot.describe(), "abstraction": robot.abstraction.as_json(),
+                        "horizon_states": robot.horizon_states, **robot.tree.stats(),
+                        "comparison": [{"property": p, "abstract": a, "robot": rv, "why": why}
+                                       for p, a, rv, why in robot.comparison]}
     for p, v in r.verdicts.items():
         d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
         if v.counterexample is not None:

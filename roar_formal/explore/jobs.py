@@ -20,7 +20,7 @@ from typing import Any, Optional
 from ..errors import Pos, RoarError
 from .search import Budget
 
-PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant")
+PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant")
 #: properties that read ROAR events or state: only for jobs on a spec
 ROAR_PROPERTIES = ("sequential-achievement", "exclusive-writes")
 STATUSES = ("holds", "violated")
@@ -38,6 +38,21 @@ class PropertySpec:
     fairness_given: bool = False
     never: list[tuple[str, Pos]] = field(default_factory=list)   # invariant: patterns no reachable state matches
     sequence_recipes: list[str] = field(default_factory=list)   # agent.task.recipe; empty: every recipe
+    robot_never: list[tuple[str, Pos]] = field(default_factory=list)    # robot-invariant: conditions never true
+    robot_always: list[tuple[str, Pos]] = field(default_factory=list)   # robot-invariant: conditions always true
+
+
+@dataclass
+class RobotSetup:
+    """A robot-backed job's [robot] table: the scenario and what the search may choose."""
+
+    scenario: Path
+    seed: int = 0
+    faults: dict = field(default_factory=dict)   # fault point -> frozenset of primitive names, or None (any call)
+    on: tuple = ()                                 # fault points on from the start (the scenario's timeline)
+    quantise: Any = None                           # roar_formal.robot.explore.Abstraction
+    compare: bool = True                           # also check the abstract model and set the verdicts side by side
+    pos: Optional[Pos] = None                      # where the table starts (errors about faults point here)
 
 
 @dataclass
@@ -56,6 +71,7 @@ class Job:
     spec: Optional[Path] = None        # a ROAR spec (instead of a .clf model)
     request: Optional[str] = None      # the request the spec is run on
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
+    robot: Optional[RobotSetup] = None  # robot-backed: the reference robot is the functional layer
 
     @property
     def is_roar(self) -> bool:
@@ -144,8 +160,8 @@ def _bound(b: dict, key: str, path: Path, expected: str, low: float, integer: bo
 def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
     spec = into or PropertySpec()
     d = _load_toml(path)
-    _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant"},
-                 "a property file", path)
+    _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant",
+                     "robot-invariant"}, "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
@@ -185,6 +201,18 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
             spec.never.append((pat, Pos(str(path), _line_of(path, "never"), 1)))
         if pats and "invariant" not in spec.check:
             spec.check.append("invariant")
+    if "robot-invariant" in d:
+        ri = _typed(d, "robot-invariant", dict, path, "a property file")
+        _expect_keys(ri, {"never", "always"}, "[robot-invariant]", path)
+        for key, into in (("never", spec.robot_never), ("always", spec.robot_always)):
+            conds = _typed(ri, key, list, path, "[robot-invariant]") if key in ri else []
+            for k, text in enumerate(conds):
+                if not isinstance(text, str) or not text.strip():
+                    raise RoarError(f"[robot-invariant] {key} is a list of conditions on the robot such as "
+                                    "\"contact\" (docs/robot.md)", Pos(str(path), _line_of(path, key), 1))
+                into.append((text, _string_pos(path, key, text)))
+        if (spec.robot_never or spec.robot_always) and "robot-invariant" not in spec.check:
+            spec.check.append("robot-invariant")
     if "deadlock" in d:
         dl = _typed(d, "deadlock", dict, path, "a property file")
         _expect_keys(dl, {"accept"}, "[deadlock]", path)
@@ -194,11 +222,88 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
     return spec
 
 
+def _string_pos(path: Path, key: str, text: str) -> Pos:
+    """Where a string value of ``key`` starts (inside its quotes), for errors inside the string."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return Pos(str(path), 1, 1)
+    start = _line_of(path, key) - 1
+    for n in range(start, len(lines)):
+        for quote in ('"', "'"):
+            col = lines[n].find(quote + text)
+            if col >= 0:
+                return Pos(str(path), n + 1, col + 2)
+    return Pos(str(path), start + 1, 1)
+
+
+def _robot_setup(d: dict, path: Path, base: Path) -> RobotSetup:
+    """``robot = "scenario.toml"`` or a [robot] table (docs/robot.md, robot-backed checking)."""
+    from ..robot.explore import Abstraction
+    raw = d["robot"]
+    where = Pos(str(path), _line_of(path, "robot"), 1)
+    if isinstance(raw, str):
+        raw = {"scenario": raw}
+    if not isinstance(raw, dict):
+        raise RoarError("'robot' is a scenario file (robot = \"scenario.toml\") or a [robot] table", where)
+    _expect_keys(raw, {"scenario", "seed", "faults", "on", "quantise", "compare"}, "[robot]", path)
+    if "scenario" not in raw:
+        raise RoarError("[robot] needs 'scenario = \"path/to/scenario.toml\"'", where)
+    setup = RobotSetup(scenario=(base / _typed(raw, "scenario", str, path, "[robot]")).resolve(), pos=where)
+    if "seed" in raw:
+        setup.seed = _typed(raw, "seed", int, path, "[robot]")
+    if "compare" in raw:
+        setup.compare = _typed(raw, "compare", bool, path, "[robot]")
+    if "on" in raw:
+        on = _typed(raw, "on", list, path, "[robot]")
+        if not all(isinstance(x, str) for x in on):
+            raise RoarError("[robot] on is a list of fault point names", _value_pos(path, "on"))
+        setup.on = tuple(on)
+    if "faults" in raw:
+        f = raw["faults"]
+        if isinstance(f, list) and all(isinstance(x, str) for x in f):
+            setup.faults = {x: None for x in f}
+        elif isinstance(f, dict):
+            for name, prims in f.items():
+                if prims == "any":
+                    setup.faults[name] = None
+                elif isinstance(prims, list) and prims and all(isinstance(x, str) for x in prims):
+                    setup.faults[name] = frozenset(prims)
+                else:
+                    raise RoarError(f"[robot.faults] {name} is \"any\" or a list of the primitives at whose calls "
+                                    f"it may be armed, not {prims!r}", _value_pos(path, name))
+        else:
+            raise RoarError("[robot] faults is a list of fault point names, or a table naming for each the "
+                            "primitives at whose calls it may be armed", _value_pos(path, "faults"))
+    q = raw.get("quantise", {})
+    if q == "exact":
+        setup.quantise = Abstraction(exact=True)
+    elif isinstance(q, dict):
+        _expect_keys(q, {"position", "heading", "speed", "clock", "memory"}, "[robot.quantise]", path)
+        vals = {}
+        for k in ("position", "heading", "speed", "clock"):
+            if k in q:
+                v = q[k]
+                lowest = 0.0 if k == "clock" else None
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
+                        (v < 0 if lowest == 0.0 else v <= 0):
+                    raise RoarError(f"[robot.quantise] {k} must be a {'non-negative' if k == 'clock' else 'positive'} "
+                                    f"number, not {v!r}", _value_pos(path, k))
+                vals[k] = float(v)
+        if "memory" in q:
+            vals["memory"] = _typed(q, "memory", bool, path, "[robot.quantise]")
+        setup.quantise = Abstraction(**vals)
+    else:
+        raise RoarError("[robot] quantise is \"exact\" or a table: position (m), heading (degrees), speed (m/s), "
+                        "clock (s, 0: not compared), memory (true/false)", _value_pos(path, "quantise"))
+    return setup
+
+
 def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
     _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
-                     "canonical", "reduction", "bounds", "expect"},
+                     "canonical", "reduction", "bounds", "expect", "robot"},
                  "a job file", path)
     base = path.parent
     if "spec" in d:
@@ -213,7 +318,12 @@ def load_job(path: str | Path) -> Job:
                   request=_typed(d, "request", str, path, "a job file"))
         if "functional" in d:
             job.functional = (base / _typed(d, "functional", str, path, "a job file")).resolve()
+        if "robot" in d:
+            job.robot = _robot_setup(d, path, base)
     else:
+        if "robot" in d:
+            raise RoarError("'robot' belongs to a job on a spec ('spec = ...'): the robot is the functional layer "
+                            "a spec calls", Pos(str(path), _line_of(path, "robot"), 1))
         if "model" not in d:
             raise RoarError("a job needs 'model = \"path/to/model.clf\"' or 'spec = \"path/to/spec.roar\"' "
                             "with a 'request'", Pos(str(path), 1, 1))
@@ -269,6 +379,12 @@ def load_job(path: str | Path) -> Job:
             if p in ROAR_PROPERTIES:
                 raise RoarError(f"property '{p}' reads ROAR events: it needs a job on a spec ('spec = ...')",
                                 Pos(str(path), 1, 1))
+    if "robot-invariant" in job.props.check and job.robot is None:
+        raise RoarError("property 'robot-invariant' reads the robot's state: it needs a robot-backed job "
+                        "('robot = \"scenario.toml\"')", Pos(str(path), 1, 1))
+    if "robot-invariant" in job.props.check and not (job.props.robot_never or job.props.robot_always):
+        raise RoarError("property 'robot-invariant' needs conditions: [robot-invariant] never = [\"...\"] or "
+                        "always = [\"...\"] in a property file", Pos(str(path), 1, 1))
     if "invariant" in job.props.check and not job.props.never:
         raise RoarError("property 'invariant' needs patterns: [invariant] never = [\"...\"] in a property file",
                         Pos(str(path), 1, 1))
@@ -305,6 +421,9 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
         if p not in allowed:
             raise RoarError(f"--property {p}: expected one of {', '.join(allowed)}"
                             + ("" if spec else " (the others read ROAR events: check a spec)"))
+        if p == "robot-invariant":
+            raise RoarError("--property robot-invariant needs a scenario and its conditions: write them in a "
+                            "robot-backed job (docs/robot.md)")
         if p == "invariant":
             raise RoarError("--property invariant needs its never patterns: write them in a property file and "
                             "a job (docs/checking.md)")

@@ -286,5 +286,8 @@ def path_narration(model: CompiledModel, start: Context, steps: list):
             nar.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
     out = []
     for i, step in enumerate(steps, 1):
-        out.extend(nar.events(i, step))
+        # a robot-backed step (a launch, the physics advancing) is narrated by its parts: each answer
+        parts = getattr(step, "parts", None)
+        for part in (parts if parts is not None else (step,)):
+            out.extend(nar.events(i, part))
     return out, nar

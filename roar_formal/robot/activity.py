@@ -90,6 +90,10 @@ class Activity:
     def describe(self) -> str:
         return self.name
 
+    # An activity may define ``state_key(robot) -> tuple``: what of it decides its future, with
+    # times relative to ``robot.time`` (robot-backed exploration compares states by it). Without
+    # one, the activity's plain attributes and the clock are compared: never a wrong merge.
+
 
 class Read(Activity):
     """A read of the robot's state that takes no time: ``fn(robot)`` is the result.
@@ -130,3 +134,6 @@ class Sleep(Activity):
             return None
         v = getattr(robot, self.read)(*self.args) if self.read else True
         return v if isinstance(v, CallResult) else ok(v)
+
+    def state_key(self, robot) -> tuple:
+        return (self.read, repr(self.args), round((self.until - robot.time) / robot.world.dt))

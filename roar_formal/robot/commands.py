@@ -230,6 +230,8 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     request = header.get("request")
     if not isinstance(request, str) or not request:
         raise RoarError(f"{trace}: the trace header records no request: is it a trace of a ROAR spec?")
+    if header.get("robot") is not None:   # a counterexample the robot-backed explorer found
+        return _replay_robot_backed(trace, header, records, model, on_robot, loops, png, functional, force, console)
     if on_robot is not None:
         _check_output(png, None, model, on_robot)
         from .onrobot import replay_on_robot
@@ -280,3 +282,40 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     for line in rp.divergence.lines():
         console.print(Text(line, style="red" if line.startswith("step") else ""), soft_wrap=True)
     return 1
+
+
+def _replay_robot_backed(trace: Path, header: dict, records: list, model: Path, on_robot: Optional[Path], loops: int,
+                         png: Optional[Path], functional: Optional[Path], force: bool, console) -> int:
+    """``replay TRACE --on-robot SCENARIO --model SPEC`` on a robot-backed counterexample: one robot,
+    driven straight through the counterexample's launches, fault choices and advances."""
+    from rich.text import Text
+    from ..trace.fingerprint import fingerprint
+    from .onrobot import check_robot_records, replay_robot_path
+    info = header["robot"]
+    if not isinstance(info, dict):
+        raise RoarError(f"{trace}: the header's 'robot' must be an object")
+    if on_robot is None:
+        raise RoarError(f"{trace}: a counterexample found on the robot; replay it with --on-robot SCENARIO "
+                        f"(it was found on {info.get('scenario_name', 'a scenario')}; the trace's paths are never "
+                        f"opened) and --model SPEC")
+    _check_output(png, None, model, on_robot)
+    check_robot_records(records, str(trace))
+    mine = fingerprint([("scenario", "scenario.toml", on_robot)])
+    theirs = info.get("scenario_fingerprint")
+    if isinstance(theirs, dict) and theirs != mine and not force:
+        raise RoarError(f"{trace}: the counterexample was found on another scenario than {on_robot} (its "
+                        f"fingerprint differs); pass the scenario it was found on, or --force")
+    spec_ast, compiled, binding, sc = prepare(model, header["request"], on_robot, functional)
+    console.print(Text(f"{trace}: {len(records)} steps of a robot-backed counterexample ({header.get('property')}) "
+                       f"for request {header['request']}, on scenario {sc.name}"), soft_wrap=True)
+    res = replay_robot_path(compiled, binding.robot, sc, header, records, loops,
+                            on_line=lambda line: console.print(Text(line), soft_wrap=True))
+    console.print(Text(res.message, style="green" if res.realised else "red"), soft_wrap=True)
+    if png is not None:
+        from .report import draw_robot
+        x, y, _th = res.pose
+        draw_robot(png, res.robot, title=f"{sc.name}: {header.get('property')} counterexample "
+                   f"{'realised' if res.realised else 'not realised'} (t = {res.time:.1f} s)",
+                   marks=[(x, y, "counterexample ends here" if res.realised else "diverges here")])
+        console.print(Text(f"picture written to {png}"))
+    return 0 if res.realised else 1

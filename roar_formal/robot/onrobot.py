@@ -232,3 +232,130 @@ def _poll_period(model, rule: str) -> Optional[float]:
 
 def _args(rec: CallRecord) -> str:
     return ", ".join(str(a) for a in rec.args)
+
+
+# ------------------------------------------------------------------------------------------------
+# robot-backed counterexamples: the robot's own events, driven straight
+
+
+def _robot_record_error(file: str, n: int, what: str) -> RoarError:
+    from ..errors import Pos
+    return RoarError(f"robot-backed counterexample record: {what}", Pos(file, n + 1, 1))
+
+
+def check_robot_records(records: list, file: str) -> None:
+    """Refuse, at its line, a robot event whose fields do not have the types the replay reads."""
+    for n, rec in enumerate(records, 1):
+        r = rec.get("robot")
+        if r is None:
+            continue
+        if not isinstance(r, dict) or r.get("kind") not in ("launch", "advance"):
+            raise _robot_record_error(file, n, "expected 'robot' to be an object of kind 'launch' or 'advance'")
+        if r["kind"] == "launch":
+            calls = r.get("calls")
+            if not isinstance(calls, list) or not all(isinstance(c, dict) and isinstance(c.get("fc"), str)
+                                                      and isinstance(c.get("args"), list) for c in calls):
+                raise _robot_record_error(file, n, "expected 'robot.calls' to be a list of {fc, function, args}")
+            if not isinstance(r.get("arm", []), list) or not all(isinstance(x, str) for x in r.get("arm", [])):
+                raise _robot_record_error(file, n, "expected 'robot.arm' to be a list of fault point names")
+            if not isinstance(r.get("results"), list) or len(r["results"]) != len(calls):
+                raise _robot_record_error(file, n, "expected 'robot.results' to hold one result (or null) per call")
+        else:
+            u = r.get("until")
+            if u is not None and (isinstance(u, bool) or not isinstance(u, int) or u < 0):
+                raise _robot_record_error(file, n, "expected 'robot.until' to be null or a number of ticks")
+            if not isinstance(r.get("ended", []), list):
+                raise _robot_record_error(file, n, "expected 'robot.ended' to be a list")
+        pose = rec.get("pose")
+        if pose is not None and (not isinstance(pose, list) or len(pose) != 3
+                                 or not all(isinstance(v, (int, float)) for v in pose)):
+            raise _robot_record_error(file, n, "expected 'pose' to be [x, y, theta]")
+
+
+def _same_result(mine: CallResult, rec: Optional[dict]) -> bool:
+    if rec is None:
+        return False
+    got = mine.as_json()
+    return got["failed"] == rec.get("failed") and got["status"] == rec.get("status") and \
+        got["value"] == rec.get("value")
+
+
+def replay_robot_path(model, registry, scenario, header: dict, records: list, loops: int = 1,
+                      on_line: Optional[Callable[[str], None]] = None) -> OnRobot:
+    """Drive one robot, straight (no snapshot, no restore), through the robot events of a
+    robot-backed counterexample: the launches with their fault choices and the advances. Each
+    call must end as recorded, and the robot must end the path where the explorer said (the
+    pose, to a micrometre). A lasso's cycle is driven ``loops`` times; after the first time its
+    answers must fall into the same results, since the explorer closed the cycle on states it
+    judged the same under its abstraction (which the loops test)."""
+    from .explore import start_call
+    info = header.get("robot") or {}
+    robot = Robot(scenario, seed=int(info.get("seed", 0)), faults=tuple(info.get("on", ())))
+    now_fc = {fc for fc, (owner, name) in model.functions.items() if owner is None and name == "now"}
+    stem = [r for r in records if not r.get("loop")]
+    cycle = [r for r in records if r.get("loop")]
+    order = [(r, 0) for r in stem] + [(r, k + 1) for k in range(max(1, loops) if cycle else 0) for r in cycle]
+    lines: list = []
+
+    def say(text: str) -> None:
+        lines.append(text)
+        if on_line:
+            on_line(text)
+
+    horizon = int(round(float(scenario.horizon) / scenario.dt))
+    done_steps = 0
+    for i, (rec, loop) in enumerate(order, 1):
+        r = rec.get("robot")
+        if r is None:
+            done_steps += 1
+            continue
+        tag = f"step {i}" + (f" (cycle, loop {loop})" if loop else "")
+        if r["kind"] == "launch":
+            for f in r.get("arm", []):
+                robot.world.arm(f)
+            for c, want in zip(r["calls"], r["results"]):
+                fc = c["fc"]
+                if fc not in model.functions:
+                    return _diverged(robot, done_steps, len(order), lines, say,
+                                     f"{tag}: the spec has no function {c.get('function', fc)!r}")
+                _h, res = start_call(model, registry, robot, fc, list(c["args"]), now_fc)
+                if (res is None) != (want is None) or (res is not None and not _same_result(res, want)):
+                    shown = "still running" if res is None else f"{res.status} ({res.value!r})"
+                    return _diverged(robot, done_steps, len(order), lines, say,
+                                     f"{tag}: {c.get('function', fc)} ended {shown} on the robot; the "
+                                     f"counterexample says {'still running' if want is None else want.get('status')}")
+            arm = f"; armed {', '.join(r.get('arm', []))}" if r.get("arm") else ""
+            say(f"{robot.time:8.2f}s  launch {', '.join(c.get('function', c['fc']) for c in r['calls'])}{arm}")
+        else:
+            stop = horizon if r.get("until") is None else min(horizon, robot.world.steps + int(r["until"]))
+            ended: list = []
+            while not ended and robot.world.steps < stop:
+                ended = robot.step()
+            want = [e.get("result") for e in r.get("ended", [])]
+            got = [res for _h, res in ended]
+            unmatched = [w for w in want if not any(_same_result(g, w) for g in got)]
+            if unmatched:
+                return _diverged(robot, done_steps, len(order), lines, say,
+                                 f"{tag}: the counterexample has a call end {unmatched[0].get('status')!r} at "
+                                 f"t = {robot.time:.2f} s; the robot ended "
+                                 f"{', '.join(g.status for g in got) or 'nothing'}")
+            if got:
+                say(f"{robot.time:8.2f}s  ended: {', '.join(g.status for g in got)}")
+        done_steps += 1
+        pose = rec.get("pose")
+        if pose is not None and not loop:
+            err = max(abs(a - b) for a, b in zip(robot.world.base.pose, pose))
+            if err > 1e-6:
+                return _diverged(robot, done_steps, len(order), lines, say,
+                                 f"{tag}: the robot is at {tuple(round(v, 4) for v in robot.world.base.pose)}, the "
+                                 f"counterexample says {tuple(round(v, 4) for v in pose)}")
+    x, y, th = robot.world.base.pose
+    msg = (f"realised on the robot: {done_steps} steps" + (f", the cycle driven {loops} times" if cycle else "")
+           + f"; the robot ends at ({x:.2f}, {y:.2f}) as the counterexample says")
+    return OnRobot(True, done_steps, len(order), robot.time, (x, y, th), msg, lines, robot)
+
+
+def _diverged(robot, steps, total, lines, say, why: str) -> OnRobot:
+    say(why)
+    return OnRobot(False, steps, total, robot.time, tuple(robot.world.base.pose), f"not realised: {why}", lines,
+                   robot)

@@ -123,8 +123,8 @@ def draw_robot(path_png, robot, title: str, marks=()) -> None:
     from .draw import draw_ptu, draw_run
     if robot.world.ptu is not None and robot.pan and not robot.plans:
         ptu = robot.scenario.ptu
-        cable = [robot.scenario.faults[f].max_deg for f in robot.world.faults
-                 if robot.scenario.faults[f].kind == "ptu_cable"]
+        on = list(robot.world.faults) + [name for name, _t in robot.world.armed]
+        cable = [robot.scenario.faults[f].max_deg for f in on if robot.scenario.faults[f].kind == "ptu_cable"]
         limits = (-cable[0], cable[0]) if cable else (ptu.min_deg, ptu.max_deg)
         draw_ptu(path_png, [p[0] for p in robot.pan], [p[1] for p in robot.pan], [p[2] for p in robot.pan],
                  limits=limits, title=title)

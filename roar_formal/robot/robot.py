@@ -369,6 +369,11 @@ class FollowPath(Activity):
         x, y, _ = robot.world.base.odometry
         return failed("timeout", False, x=x, y=y, seconds=robot.time - self.t0)
 
+    def state_key(self, robot) -> tuple:
+        """What decides how it ends (the follower's state is the robot's; the start time only
+        goes into the result's details)."""
+        return (self.speed,)
+
 
 class Plan(Activity):
     """Plan a path to ``goal`` on what the robot knows; the answer comes after ``seconds`` of computation."""
@@ -399,6 +404,11 @@ class Plan(Activity):
 
     def tick(self, robot) -> Optional[CallResult]:
         return self.result if robot.time >= self.until else None
+
+    def state_key(self, robot) -> tuple:
+        res = self.result
+        return (self.goal, self.handle, None if res is None else (res.failed, res.status, repr(res.value)),
+                round((self.until - robot.time) / robot.world.dt))
 
 
 class Turn(Activity):
@@ -439,6 +449,10 @@ class Turn(Activity):
     def on_timeout(self, robot) -> CallResult:
         return failed("timeout", False, angle=robot.world.ptu.angle_deg, target=self.angle)
 
+    def state_key(self, robot) -> tuple:
+        still = None if self.still_since is None else round((robot.time - self.still_since) / robot.world.dt)
+        return (self.angle, self.tolerance, self.stall, still)
+
 
 class Grip(Activity):
     """Close (or open) the gripper; closing succeeds only with an object between the jaws."""
@@ -465,3 +479,6 @@ class Grip(Activity):
         if g.holding is None:
             return failed("empty", False)
         return ok(True, "holding", object=g.holding)
+
+    def state_key(self, robot) -> tuple:
+        return (self.close,)

@@ -40,7 +40,7 @@ from .activity import Activity, CallResult
 from .robot import Robot
 from .scenario import Scenario
 
-__all__ = ["CallRecord", "SimResult", "simulate", "classify", "DEFAULT_POLL"]
+__all__ = ["CallRecord", "SimResult", "simulate", "classify", "poll_period", "result_term", "DEFAULT_POLL"]
 
 #: the poll period of a wait written without one (s)
 DEFAULT_POLL = 0.1
@@ -169,6 +169,33 @@ def _same_value(a, b) -> bool:
     return a == b
 
 
+
+def poll_period(model: CompiledModel, step) -> Optional[float]:
+    """The period (s) an activation sleeps after ``step`` when the step is a poll found false
+    (a wait whose predicate calls the functional layer); None for any other step."""
+    rule = step.rule
+    if not rule.endswith("_false"):
+        return None
+    site = model.sites.get(site_of(rule))
+    if site is None or site.kind != "wait":
+        return None
+    for _m, f in step.produced:
+        if type(f) is Root and isinstance(f.head, Const) and f.head.name == "ctl":
+            mode = f.args[1]
+            if isinstance(mode.head, Const) and mode.head.name == "m_run":
+                return site.period_ms / 1000.0 if site.period_ms else DEFAULT_POLL
+    return None
+
+
+def result_term(model: CompiledModel, values: Values, fc: str, res: CallResult):
+    """The CLF value a call of function ``fc`` answers with ``res`` (None: the call fails)."""
+    rty = model.fn_types.get(fc)
+    if res.failed:
+        return const("vbool", const("ff")) if rty == "bool" else None
+    if rty is None or (res.value is None and rty != "bool"):
+        return const("vunit")
+    return values.term(res.value, rty)
+
 def simulate(model: CompiledModel, registry: Registry, scenario: Scenario, seed: int = 0, faults=(),
              prim_faults: Optional[list[Fault]] = None, max_steps: int = 200_000,
              on_event: Optional[Callable[[RoarEvent, float], None]] = None, snapshots: bool = False,
@@ -247,19 +274,7 @@ class _Sim:
             self.sleepers.append((self.robot.time + period, self._order, ctl))
 
     def _poll_period(self, step) -> Optional[float]:
-        """The period to sleep after ``step`` when it is a poll found false (a wait calling the functional layer)."""
-        rule = step.rule
-        if not rule.endswith("_false"):
-            return None
-        site = self.model.sites.get(site_of(rule))
-        if site is None or site.kind != "wait":
-            return None
-        for _m, f in step.produced:
-            if type(f) is Root and isinstance(f.head, Const) and f.head.name == "ctl":
-                mode = f.args[1]
-                if isinstance(mode.head, Const) and mode.head.name == "m_run":
-                    return site.period_ms / 1000.0 if site.period_ms else DEFAULT_POLL
-        return None
+        return poll_period(self.model, step)
 
     # ------------------------------------------------------------------ calls
     def _called(self, f, step: int) -> None:
@@ -318,14 +333,7 @@ class _Sim:
         prim = self.registry.lookup(name, owner)
         rec.covering = classify(prim.outcomes, res, self.model.fn_types.get(rec.fc)) if prim is not None else []
         rec.outcome = rec.covering[0] if len(rec.covering) >= 1 else None
-        rty = self.model.fn_types.get(rec.fc)
-        if res.failed:
-            term = const("vbool", const("ff")) if rty == "bool" else None
-        elif rty is None or (res.value is None and rty != "bool"):
-            term = const("vunit")
-        else:
-            term = self.values.term(res.value, rty)
-        self._answer(f, rec, term, {})
+        self._answer(f, rec, result_term(self.model, self.values, rec.fc, res), {})
 
     def _answer(self, f, rec: CallRecord, term, writes: dict) -> None:
         ans = const("return", term, f.args[2]) if term is not None else const("callfail", f.args[2])

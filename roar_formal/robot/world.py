@@ -35,7 +35,7 @@ except ImportError:  # pragma: no cover - another pymunk layout: the public call
     _RAW_RAYS = False
 
 from ..errors import RoarError
-from .scenario import Fault, Scenario, Shape, did_you_mean
+from .scenario import DoorChange, Fault, Scenario, Shape, did_you_mean
 
 G = 9.81                     # m/s^2: the floor load of the wheels and objects
 WHEEL_INERTIA = 0.005        # kg m^2: wheel plus the motor rotor seen through the gearbox
@@ -93,6 +93,7 @@ class World:
         self.seed = scenario.seed if seed is None else seed
         self.faults = frozenset([faults] if isinstance(faults, str) else faults)
         self._log: list[tuple[int, str, str, tuple]] = []  # (tick, device, method, arguments): the commands given
+        self.armed: list[tuple[str, float]] = []   # fault points armed during the run (arm), with the time
         for name in sorted(self.faults, key=str):
             if not isinstance(name, str) or name not in scenario.faults:
                 known = ", ".join(scenario.faults) or "none"
@@ -245,6 +246,55 @@ class World:
             r = s.r if s.kind == "circle" else math.sqrt(s.w * s.h / math.pi)
             dw = (2.0 / 3.0) * spec.friction * spec.mass * G * r * dt / body.moment
             body.angular_velocity = 0.0 if abs(w) <= dw else w - math.copysign(dw, w)
+
+    # ------------------------------------------------------------ faults armed during a run
+
+    def arm(self, name: str) -> None:
+        """Turn fault point ``name`` on now, its own timeline starting now (robot-backed
+        exploration arms fault points at primitive calls). A door fault's schedule and a
+        lidar dropout's window are shifted by the current time; a friction patch, a cable,
+        a weak grip and an odometry bias hold from now on. Recorded, so replays arm it at
+        the same tick."""
+        f = self.scenario.faults.get(name)
+        if f is None:
+            known = ", ".join(self.scenario.faults) or "none"
+            raise RoarError(f"scenario '{self.scenario.name}' has no fault point '{name}'"
+                            f"{did_you_mean(str(name), self.scenario.faults)}; fault points: {known}")
+        if name in self.faults or name in self.armed:
+            raise RoarError(f"fault point '{name}' is already on")
+        if f.kind == "door":
+            other = next((g for g in list(self.faults) + [a for a, _t in self.armed]
+                          if self.scenario.faults[g].kind == "door" and self.scenario.faults[g].door == f.door), None)
+            if other is not None:
+                raise RoarError(f"faults '{other}' and '{name}' both replace the schedule of door '{f.door}'; "
+                                "turn on one of them")
+        self._record("world", "arm", (name,))
+        now = self.time
+        self.armed.append((name, now))
+        if f.kind == "door":
+            self._door_schedules[f.door] = tuple(DoorChange(c.time + now, c.open) for c in f.schedule)
+            self._update_doors()
+        elif f.kind == "lidar_dropout":
+            self.lidar.dropouts.append((f.start + now, f.until + now))
+        elif f.kind == "friction":
+            self.patches.append((f.area, f.mu))
+        elif f.kind == "ptu_cable":
+            self.ptu.add_cable(f.max_deg)
+        elif f.kind == "grip_force":
+            self.gripper.force = f.force
+        elif f.kind == "odometry_bias":
+            self.base.left_scale = f.scale
+
+    def scheduled_ticks(self) -> tuple:
+        """Ticks from now to each future scheduled change (doors, lidar dropouts): what makes
+        two worlds that look alike now behave differently later."""
+        now = self.time + 1e-9
+        out = []
+        for name, sched in sorted(self._door_schedules.items()):
+            out.extend((name, round((c.time - self.time) / self.dt)) for c in sched if c.time > now)
+        for start, until in self.lidar.dropouts:
+            out.extend(("lidar", round((t - self.time) / self.dt)) for t in (start, until) if t > now)
+        return tuple(out)
 
     # ------------------------------------------------------------ queries
 
@@ -632,11 +682,16 @@ class Ptu(_Device):
         self.motor.max_force = spec.max_torque
         limits = pymunk.RotaryLimitJoint(static, self.body, math.radians(spec.min_deg), math.radians(spec.max_deg))
         space.add(self.body, pivot, self.motor, limits)
-        self.cable_deg = cable.max_deg if cable else None
+        self.cable_deg = None
         if cable:
-            space.add(pymunk.RotaryLimitJoint(static, self.body, -math.radians(cable.max_deg),
-                                              math.radians(cable.max_deg)))
+            self.add_cable(cable.max_deg)
         self.target_deg = math.degrees(self.body.angle)
+
+    def add_cable(self, max_deg: float) -> None:
+        """A cable that stops the pan ``max_deg`` either side of zero (a fault)."""
+        self.cable_deg = max_deg
+        space, static = self.world.space, self.world.space.static_body
+        space.add(pymunk.RotaryLimitJoint(static, self.body, -math.radians(max_deg), math.radians(max_deg)))
 
     def command(self, angle_deg: float) -> None:
         """Turn toward ``angle_deg``, clamped to the unit's own limits (it does not know about a cable)."""
