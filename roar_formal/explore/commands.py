@@ -155,7 +155,8 @@ def register(app: typer.Typer) -> None:
         --model; a counterexample replays on the robot with --on-robot SCENARIO --model SPEC.
         """
         from ..trace.format import read_trace
-        if on_robot is not None or read_trace(trace)[0].get("kind") == "roar-robot-run":
+        head = read_trace(trace)[0]
+        if on_robot is not None or head.get("kind") == "roar-robot-run" or head.get("robot") is not None:
             from ..robot.commands import replay_robot
             if loops < 1 or loops > 1000:
                 raise RoarError(f"--loops {loops}: expected 1 to 1000")

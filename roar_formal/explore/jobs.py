@@ -104,11 +104,15 @@ def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
 
 def _line_of(path: Path, key: str) -> int:
     try:
-        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-            if re.match(rf"\s*\[*\s*{re.escape(key)}\s*[=\]]", line):
-                return n
+        lines = path.read_text(encoding="utf-8").splitlines()
     except OSError:
-        pass
+        return 1
+    for n, line in enumerate(lines, 1):
+        if re.match(rf"\s*\[*\s*{re.escape(key)}\s*[=\]]", line):
+            return n
+    for n, line in enumerate(lines, 1):   # a key inside an inline table: { key = ... }
+        if re.search(rf"[{{,]\s*{re.escape(key)}\s*=", line):
+            return n
     return 1
 
 
@@ -132,7 +136,7 @@ def _value_pos(path: Path, key: str) -> Pos:
     line = _line_of(path, key)
     try:
         text = path.read_text(encoding="utf-8").splitlines()[line - 1]
-        m = re.match(rf"(\s*{re.escape(key)}\s*=\s*)", text)
+        m = re.match(rf"(\s*{re.escape(key)}\s*=\s*)", text) or re.match(rf"(.*[{{,]\s*{re.escape(key)}\s*=\s*)", text)
         if m:
             return Pos(str(path), line, len(m.group(1)) + 1)
         col = text.find(key)

@@ -276,10 +276,15 @@ def import_module(path):
     spec = importlib.util.spec_from_file_location(f"roar_functional_{abs(hash(str(path.resolve())))}", path)
     if spec is None or spec.loader is None:
         raise RoarError(f"{path}: cannot be imported as a Python module")
+    import sys
     mod = importlib.util.module_from_spec(spec)
+    # registered under its name, so that objects of its classes (a robot activity under way) pickle
+    # with a robot snapshot and unpickle in this process
+    sys.modules[spec.name] = mod
     try:
         spec.loader.exec_module(mod)
     except Exception as exc:
+        sys.modules.pop(spec.name, None)
         raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
     return mod
 

@@ -215,7 +215,8 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
         v.message += f" ({tag})"
         v.details["robot"] = run.describe()
         if v.status == "holds" and run.horizon_states:
-            v.message += f"; {run.horizon_states:,} states reached the {float(scenario.horizon):g} s horizon"
+            n = run.horizon_states
+            v.message += f"; {n:,} state{'s' if n != 1 else ''} reached the {float(scenario.horizon):g} s horizon"
     if job.reduction:
         for v in verdicts.values():
             v.details["reduction"] = "not used with the robot"

@@ -265,6 +265,7 @@ class RobotTree:
         self.outcomes_seen: dict = {}     # function constant -> {declared outcome names produced}
         self.uncovered: dict = {}         # (function, status, value) -> CallResult: results no declared outcome covers
         self.now_fc = {fc for fc, (owner, name) in model.functions.items() if owner is None and name == "now"}
+        self._mid_bad: list = []          # robot invariants broken during the advance being computed
         robot = Robot(scenario, seed=seed, faults=self.faults_on)
         self.root = self._node(None, ("start",), robot, ())
 
@@ -283,7 +284,7 @@ class RobotTree:
         n.armed = frozenset(robot.world.faults) | frozenset(x for x, _t in robot.world.armed)
         n.at_horizon = n.tick >= self.horizon_tick
         n.key = ("history", n.id) if self.abstraction.exact else robot_key(robot, self.abstraction)
-        bad = []
+        bad, self._mid_bad = self._mid_bad, []
         for i, c in enumerate(self.conditions):
             why = c.violated(robot)
             if why:
@@ -348,8 +349,17 @@ class RobotTree:
             stop = self.horizon_tick if event[1] is None else min(event[1], self.horizon_tick)
             done: list = []
             t0 = robot.world.steps
+            conds = self.conditions if record else ()
+            seen_bad = False
             while not done and robot.world.steps < stop:
                 done = robot.step()
+                if conds and not seen_bad:   # robot invariants hold at every tick, not only at events
+                    for i, c in enumerate(conds):
+                        why = c.violated(robot)
+                        if why:
+                            self._mid_bad.append((i, why + " during the advance"))
+                            seen_bad = True
+                            break
             self.physics_ticks += robot.world.steps - t0
             return tuple(done)
         raise ValueError(f"unknown robot event {event!r}")
