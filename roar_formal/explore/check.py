@@ -440,6 +440,11 @@ def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
     robot = getattr(result, "robot", None)
     if robot is not None:   # robot-backed: what replay --on-robot needs to drive the same robot
         header_pairs["robot"] = robot.header(job.robot.scenario)
+        node = robot.explorer.states[v.counterexample.final_state].node
+        if prop == "robot-invariant" and node.bad:   # where the robot broke it (mid-advance, maybe)
+            _i, why, t, pose = node.bad[0]
+            header_pairs["robot"]["violation"] = {"t": round(t, 4), "pose": [round(x, 6) for x in pose],
+                                                  "why": why}
     header = {"kind": "counterexample", "property": prop, **where, **header_pairs, "fingerprint": result.fingerprint,
               "job": str(result.job.path), "shape": v.counterexample.kind,
               "final_state": result.graph.describe_state(v.counterexample.final_state)

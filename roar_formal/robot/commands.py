@@ -314,8 +314,13 @@ def _replay_robot_backed(trace: Path, header: dict, records: list, model: Path, 
     if png is not None:
         from .report import draw_robot
         x, y, _th = res.pose
+        marks = []
+        bad = info.get("violation")
+        if res.realised and isinstance(bad, dict) and isinstance(bad.get("pose"), list) and len(bad["pose"]) == 3:
+            marks.append((float(bad["pose"][0]), float(bad["pose"][1]), f"violated at t = {float(bad['t']):.2f} s"))
         draw_robot(png, res.robot, title=f"{sc.name}: {header.get('property')} counterexample "
                    f"{'realised' if res.realised else 'not realised'} (t = {res.time:.1f} s)",
-                   marks=[(x, y, "counterexample ends here" if res.realised else "diverges here")])
+                   marks=marks or [(x, y, ("the cycle repeats here" if any(r.get("loop") for r in records) else
+                                           "the path ends here") if res.realised else "diverges here")])
         console.print(Text(f"picture written to {png}"))
     return 0 if res.realised else 1

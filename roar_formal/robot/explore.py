@@ -288,7 +288,7 @@ class RobotTree:
         for i, c in enumerate(self.conditions):
             why = c.violated(robot)
             if why:
-                bad.append((i, why))
+                bad.append((i, why, robot.time, tuple(robot.world.base.pose)))
         n.bad = tuple(bad)
         self.nodes.append(n)
         self.snaps[n.id] = robot.snapshot()
@@ -357,7 +357,8 @@ class RobotTree:
                     for i, c in enumerate(conds):
                         why = c.violated(robot)
                         if why:
-                            self._mid_bad.append((i, why + " during the advance"))
+                            self._mid_bad.append((i, why + " during the advance", robot.time,
+                                                  tuple(robot.world.base.pose)))
                             seen_bad = True
                             break
             self.physics_ticks += robot.world.steps - t0
