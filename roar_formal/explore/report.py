@@ -94,6 +94,13 @@ def print_counterexample(console: Console, res, prop: str, verbose: bool = False
             console.print(f"    {i:>3}. [dim]\\[{escape(s['group'])}] {escape(s['rule'])}[/]", markup=True)
     if is_roar:
         _print_roar_final(console, rep, v.counterexample.kind)
+        robot = getattr(res, "robot", None)
+        if robot is not None:   # where the robot is, and when
+            node = robot.explorer.states[v.counterexample.final_state].node
+            x, y, th = node.pose
+            armed = f"; faults armed: {', '.join(sorted(node.armed))}" if node.armed else ""
+            console.print(f"      robot    t = {node.time:.2f} s, at ({x:.2f}, {y:.2f}), heading "
+                          f"{th * 57.29577951308232:.0f} deg{escape(armed)}", markup=True)
     elif v.counterexample.kind == "path" and rep["final"] is not None:
         console.print("    final state: " + "; ".join(rep["final"]["facts"]))
     for pic in getattr(res, "pictures", {}).get(prop, ()):
@@ -104,7 +111,9 @@ def print_counterexample(console: Console, res, prop: str, verbose: bool = False
     saved = getattr(res, "saved", {}).get(prop)
     if saved:
         job = res.job
-        console.print(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model})")
+        on_robot = f" --on-robot {job.robot.scenario}" if getattr(job, "robot", None) is not None else ""
+        console.print(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model}"
+                      f"{on_robot})")
 
 
 def _print_roar_final(console: Console, rep: dict, shape: str) -> None:

@@ -274,8 +274,12 @@ def test_memory_watch_reads_often_near_the_budget():
     assert not far.over(0) and far.next_at > 1  # far from the budget: reads seldom
     near = MemoryWatch(now + 1)
     near.over(0)
-    blob = bytearray(8 << 20)  # grows 8 MiB past a budget 1 MiB away
-    blob[::4096] = b"x" * len(blob[::4096])
+    import mmap
+    # grows 8 MiB past a budget 1 MiB away: fresh pages from the kernel (a bytearray may reuse
+    # memory the process freed earlier, which is resident already)
+    blob = mmap.mmap(-1, 8 << 20)
+    for off in range(0, 8 << 20, 4096):
+        blob[off] = 1
     assert any(near.over(u) for u in range(1, 400))
     assert MemoryWatch(None).over(10 ** 9) is False
 
