@@ -10,6 +10,22 @@ from ..console import make_console
 from ..errors import QueryError, RoarError
 
 
+def celf_category(exc: Exception) -> str:
+    """The kind of failure Celf would report: parse error, type error, mode error or query failed."""
+    from ..errors import SyntaxError_, TypeError_, UnsupportedError
+    from .signature import ModeError
+
+    if isinstance(exc, SyntaxError_):
+        return "parse error"
+    if isinstance(exc, ModeError):
+        return "mode error"
+    if isinstance(exc, (TypeError_, UnsupportedError)):
+        return "type error"
+    if isinstance(exc, QueryError):
+        return "query failed"
+    return ""
+
+
 def register(app: typer.Typer) -> None:
     @app.command("clf")
     def clf(
@@ -20,8 +36,7 @@ def register(app: typer.Typer) -> None:
         proof: bool = typer.Option(False, "--proof", help="Print the proof term of each #query solution."),
     ) -> None:
         """Type-check FILE and run its #query, #exec and #trace directives."""
-        from .program import Program
-        from .query import run_directives, with_big_stack
+        from .query import run_file, with_big_stack
 
         console = make_console()
 
@@ -36,12 +51,14 @@ def register(app: typer.Typer) -> None:
             console.print(line, style=style, markup=False, soft_wrap=True)
 
         def job():
-            program = Program.from_file(file)
-            return run_directives(program, seed=seed, emit=emit, trace=trace, fair=fair, proofs=proof)
+            return run_file(file, seed=seed, emit=emit, trace=trace, fair=fair, proofs=proof)
 
         try:
             with_big_stack(job)
-        except QueryError:
-            raise
         except RecursionError:
             raise RoarError(f"{file}: the program recursed too deeply for this engine") from None
+        except RoarError as exc:
+            category = celf_category(exc)
+            if category and not exc.message.startswith(category):
+                exc.notes.append(f"({category}, in Celf's terms)")
+            raise

@@ -47,7 +47,12 @@ def match(p: Node, t: Node, b: list, trail: list) -> bool:
                 return v is t
             v = b[i]
             if v is not None:
-                return inst(p, b) is t
+                try:
+                    return inst(p, b) is t
+                except KeyError:
+                    # the head is known (e.g. a name made by Exists) but an argument is still
+                    # a slot (`rsp (L !B)` with L bound, B not): match the applied head
+                    return match(apply(v, tuple(_inst_partial(a, b) for a in p.args)), t, b, trail)
             sol = _ho_solve(p.args, t)
             if sol is None:
                 return False
@@ -111,6 +116,25 @@ def _ho_solve(args: tuple, t: Node) -> Optional[Node]:
     for _ in range(n):
         body = Lam(body)
     return body
+
+
+def _inst_partial(p: Node, b) -> Node:
+    """Instantiate the bound slots of a pattern, leaving the unbound ones in place."""
+    if not p.metas:
+        return p
+    tp = type(p)
+    if tp is Root:
+        args = tuple([_inst_partial(a, b) for a in p.args]) if p.args else ()
+        h = p.head
+        if type(h) is Meta:
+            v = b[h.index]
+            if v is None:
+                return Root(h, args)
+            return apply(v, args) if args else v
+        return Root(h, args)
+    if tp is Lam:
+        return Lam(_inst_partial(p.body, b))
+    return p
 
 
 def inst(p: Node, b) -> Node:

@@ -20,9 +20,10 @@ from os import PathLike
 from typing import Iterable, Union
 
 from lark import Lark, Token, Transformer
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark.lexer import Lexer
+from lark.exceptions import UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from ..errors import Pos, RoarError, SyntaxError_
+from ..errors import Pos, RoarError, SyntaxError_, TypeError_
 from . import surface as s
 
 __all__ = ["parse_program", "parse_file", "parse_expr"]
@@ -38,6 +39,52 @@ def _tpos(tok: Token) -> Pos:
 
 def _bound(tok: Token) -> s.Bound:
     return "*" if tok.type == "STAR" else int(tok)
+
+
+_MODE_NAME = {"linear": "", "affine": "@", "persistent": "!"}
+
+
+def _desugar_pattern(binder: str, pat, ty, body):
+    """``PI p : S. B`` and ``EXISTS p : S1. S2`` in terms of Pi, Exists, the arrows and ``*``.
+
+    A pattern must follow the shape of its type: ``!x`` binds a persistent
+    ``!A`` (dependently, as ``Pi x:A`` / ``Exists x:A``); ``_``, ``@_``, ``!_``
+    match ``A``, ``@A``, ``!A`` without binding; ``1`` matches ``1`` and
+    ``[p, q]`` a tensor ``S1 * S2``.
+    """
+    if isinstance(pat, s.PVar):
+        if pat.mode != "persistent":
+            raise SyntaxError_(
+                f"'{_MODE_NAME[pat.mode]}{pat.name}' cannot be bound by {binder}: a variable of a {binder} pattern "
+                f"is persistent ('!{pat.name} : !A'); write '_' or '@_' for a part that is not named", pat.pos)
+        if not isinstance(ty, s.Bang):
+            raise TypeError_(f"the pattern '!{pat.name}' of {binder} needs a type '!A'", ty.pos)
+        cls = s.Pi if binder == "PI" else s.Exists
+        return cls(pat.pos, pat.name, ty.body, body)
+    if isinstance(pat, s.PBlank):
+        want = {"persistent": s.Bang, "affine": s.Affine}.get(pat.mode)
+        if want is not None and not isinstance(ty, want):
+            mark = "!" if pat.mode == "persistent" else "@"
+            raise TypeError_(f"the pattern '{mark}_' of {binder} needs a type '{mark}A'", ty.pos)
+        if want is None and isinstance(ty, (s.Bang, s.Affine, s.Tensor, s.One, s.Exists)):
+            raise TypeError_(f"the pattern '_' of {binder} needs a negative type (write '!_', '@_', '1' or "
+                             "'[p, q]' to match '!A', '@A', '1' or 'S1 * S2')", ty.pos)
+        if binder == "EXISTS":
+            return s.Tensor(pat.pos, ty, body)
+        if want is None:
+            return s.Arrow(pat.pos, "-o", ty, body)
+        return s.Arrow(pat.pos, "->" if pat.mode == "persistent" else "-@", ty.body, body)
+    if isinstance(pat, s.POne):
+        if not isinstance(ty, s.One):
+            raise TypeError_(f"the pattern '1' of {binder} needs the type '1'", ty.pos)
+        return body
+    # a tuple [p1, p2, ..., pn] matches S1 * (S2 * ...)
+    first, rest = pat.items[0], pat.items[1:]
+    if not isinstance(ty, s.Tensor):
+        raise TypeError_(f"the pattern '[...]' of {binder} needs a tensor type 'S1 * S2'", ty.pos)
+    rest_pat = rest[0] if len(rest) == 1 else s.PTuple(rest[0].pos, rest)
+    inner = _desugar_pattern(binder, rest_pat, ty.right, body)
+    return _desugar_pattern(binder, first, ty.left, inner)
 
 
 _UNESCAPE = {"\\": "\\", '"': '"', "n": "\n", "t": "\t"}
@@ -138,9 +185,46 @@ class _Build(Transformer):
         return s.Exists(_tpos(kw), str(var), ty, body)
 
     def lam(self, c):
-        kw, mark, var, ty, body = c
-        mode = "linear" if mark is None else ("persistent" if mark.type == "BANG" else "affine")
-        return s.Lam(_tpos(kw), str(var), body, mode, ty)
+        kw, pat, ty, body = c
+        if isinstance(pat, s.PVar):
+            return s.Lam(_tpos(kw), pat.name, body, pat.mode, ty)
+        return s.PatLam(_tpos(kw), pat, ty, body)
+
+    def let(self, c):
+        kw, _brace, pat, value, _in, body = c
+        return s.Let(_tpos(kw), pat, value, body)
+
+    def tuple(self, c):
+        return s.Tuple(_tpos(c[0]), tuple(c[1:]))
+
+    # -- patterns -----------------------------------------------------------
+    def pat_var(self, c):
+        if len(c) == 1:
+            return s.PVar(_tpos(c[0]), str(c[0]), "linear")
+        mark, name = c
+        return s.PVar(_tpos(mark), str(name), "persistent" if mark.type == "BANG" else "affine")
+
+    def pat_blank(self, c):
+        if len(c) == 1:
+            return s.PBlank(_tpos(c[0]), "linear")
+        return s.PBlank(_tpos(c[0]), "persistent" if c[0].type == "BANG" else "affine")
+
+    def pat_one(self, c):
+        return s.POne(_tpos(c[0]))
+
+    def pat_tuple(self, c):
+        return s.PTuple(_tpos(c[0]), tuple(c[1:]))
+
+    def pat_paren(self, c):
+        return dataclasses.replace(c[1], pos=_tpos(c[0]))
+
+    def pat_pi(self, c):
+        kw, pat, ty, body = c
+        return _desugar_pattern("PI", pat, ty, body)
+
+    def pat_exists(self, c):
+        kw, pat, ty, body = c
+        return _desugar_pattern("EXISTS", pat, ty, body)
 
     # -- items ------------------------------------------------------------
     def decl(self, c):
@@ -150,7 +234,16 @@ class _Build(Transformer):
 
     def query(self, c):
         kw, d, e, l, a, goal = c
-        return s.Query(_tpos(kw), _bound(d), _bound(e), _bound(l), _bound(a), goal)
+        ev, lv, av = _bound(e), _bound(l), _bound(a)
+        # Celf's checks of the bounds: e solutions cannot be expected when looking for fewer,
+        # and repeated attempts look for every solution
+        if ev != "*" and lv != "*" and ev > lv:
+            raise SyntaxError_(f"#query expects {ev} solutions but looks for only {lv} "
+                               "(the second bound may not exceed the third)", _tpos(e))
+        if av > 1 and lv != "*":
+            raise SyntaxError_(f"#query with {av} attempts must look for every solution: "
+                               "its third bound must be '*'", _tpos(l))
+        return s.Query(_tpos(kw), _bound(d), ev, lv, av, goal)
 
     def exec(self, c):
         kw, n, start = c
@@ -160,11 +253,121 @@ class _Build(Transformer):
         kw, name, *modes = c
         return s.Mode(_tpos(kw), str(name), tuple(str(m) for m in modes))
 
+    def implicit_modes(self, c):
+        return tuple(str(m) for m in c[1:])
+
+    def mode_implicit(self, c):
+        kw, name, implicit, *modes = c
+        return s.Mode(_tpos(kw), str(name), tuple(str(m) for m in modes), implicit)
+
     def program(self, c):
         return tuple(c)
 
     def lone_expr(self, c):
         return c[0]
+
+
+# ---------------------------------------------------------------------------
+# The lexer: Celf's lexical rules
+# ---------------------------------------------------------------------------
+
+#: the characters of an identifier (Celf's lexer: any run of them is one token)
+ID_CHARS = "-a-zA-Z0-9<>=/|_'*#+&~;$?"
+_WORD_RE = r"[\-a-zA-Z0-9<>=/|_'*#+&~;$?]"
+_SCAN = re.compile(
+    r"(?P<ws>[ \t\r\n\f]+)"
+    r"|(?P<block>%\{.*?\}%)"
+    r"|(?P<openblock>%\{)"
+    r"|(?P<line>%[^\n]*)"
+    r"|(?P<affi>-@)"
+    # a decimal literal (an extension): digits, '.', digits, not running into an identifier
+    r"|(?P<dec>-?[0-9]+\.[0-9]+(?!" + _WORD_RE + r"))"
+    r"|(?P<word>" + _WORD_RE + r"+)"
+    r'|(?P<str>"(?:[^"\\\n]|\\["\\nt])*")'
+    r"|(?P<raffi>@-)"
+    r"|(?P<punct>[.:{}()\[\],\\!@])",
+    re.S)
+_PUNCT = {".": "_DOT", ":": "_COLON", "{": "LBRACE", "}": "_RBRACE", "(": "LPAR", ")": "_RPAR",
+          "[": "LBRACKET", "]": "_RBRACKET", ",": "_COMMA", "\\": "LAMBDA", "!": "BANG", "@": "AT"}
+# a run of identifier characters that is exactly one of these is that token
+_WORDS = {
+    "-o": "LOLLI", "o-": "RLOLLI", "->": "ARROW", "<-": "RARROW", "-D": "MINUSD", "_": "UNDERSCORE",
+    "&": "AMP", "*": "STAR", "<": "LANGLE", ">": "_RANGLE", "=": "_EQUAL", "+": "PLUS", "-": "MINUS",
+    "type": "TYPE", "Pi": "PI", "PI": "LPI", "Exists": "EXISTS", "EXISTS": "LEXISTS", "let": "LET",
+    "in": "IN", "#1": "PROJ", "#2": "PROJ", "#query": "QUERY", "#mode": "MODE", "#exec": "EXEC",
+    "#trace": "TRACE", "1": "ONE",
+}
+_DIGITS = re.compile(r"[0-9]+")
+_NEG_INT = re.compile(r"-[0-9]+")
+
+
+def _word_type(w: str) -> str:
+    kind = _WORDS.get(w)
+    if kind is not None:
+        return kind
+    if _DIGITS.fullmatch(w):
+        return "NUM"
+    if _NEG_INT.fullmatch(w):
+        return "NUMLIT"  # an extension: Celf reads `-1` as an identifier
+    return "ID"
+
+
+def tokenize(text: str, file: str = "<input>"):
+    """Celf's tokens of ``text`` as lark tokens (whitespace and comments dropped).
+
+    Malformed input (an unterminated comment or string, a character outside
+    the language) raises a positioned :class:`SyntaxError_`.
+    """
+    pos = 0
+    line = 1
+    line_start = 0
+    n = len(text)
+    scan = _SCAN.match
+    while pos < n:
+        m = scan(text, pos)
+        if m is None:
+            col = pos - line_start + 1
+            raise SyntaxError_(_bad_characters(text, pos), Pos(file, line, col))
+        kind = m.lastgroup
+        end = m.end()
+        value = m.group()
+        if kind == "ws" or kind == "block" or kind == "line":
+            nl = value.count("\n")
+            if nl:
+                line += nl
+                line_start = pos + value.rfind("\n") + 1
+            pos = end
+            continue
+        col = pos - line_start + 1
+        if kind == "word":
+            ttype = _word_type(value)
+        elif kind == "punct":
+            ttype = _PUNCT[value]
+        elif kind == "affi":
+            ttype = "AFFI"
+        elif kind == "raffi":
+            ttype = "RAFFI"
+        elif kind == "dec":
+            ttype = "NUMLIT"
+        elif kind == "str":
+            ttype = "STRING"
+        else:  # openblock
+            raise SyntaxError_("unterminated block comment: '%{' has no matching '}%'", Pos(file, line, col))
+        yield Token(ttype, value, pos, line, col, line, col + len(value), end)
+        pos = end
+
+
+class _CelfLexer(Lexer):
+    """Feeds :func:`tokenize`'s tokens to lark's LALR parser."""
+
+    def __init__(self, conf):
+        pass
+
+    def lex(self, data, parser_state=None):
+        # lark hands a custom lexer the text (a str, or a TextSlice in lark >= 1.2)
+        while not isinstance(data, str):
+            data = data.text
+        return tokenize(data, _FILE.get())
 
 
 @functools.cache
@@ -174,7 +377,7 @@ def _parser() -> Lark:
     return Lark(
         grammar,
         parser="lalr",
-        lexer="contextual",
+        lexer=_CelfLexer,
         start=["program", "lone_expr"],
         transformer=_Build(),
         maybe_placeholders=False,
@@ -230,14 +433,16 @@ _LITERAL = {
     "LPAR": "(", "_RPAR": ")", "LBRACE": "{", "_RBRACE": "}", "LANGLE": "<", "_RANGLE": ">",
     "_COMMA": ",", "_COLON": ":", "_EQUAL": "=", "_DOT": ".",
     "QUERY": "#query", "EXEC": "#exec", "TRACE": "#trace", "MODE": "#mode",
+    "LPI": "PI", "LEXISTS": "EXISTS", "LET": "let", "IN": "in", "MINUSD": "-D",
+    "LBRACKET": "[", "_RBRACKET": "]",
 }
-_EXPR_START = {"ID", "TYPE", "PI", "EXISTS", "UNDERSCORE", "ONE", "NUMLIT", "STRING", "BANG", "AT", "LAMBDA",
-               "LPAR", "LBRACE", "LANGLE"}
+_EXPR_START = {"ID", "TYPE", "PI", "EXISTS", "UNDERSCORE", "ONE", "NUM", "NUMLIT", "STRING", "BANG", "AT", "LAMBDA",
+               "LPAR", "LBRACE", "LANGLE", "LPI", "LEXISTS", "LET", "LBRACKET", "PLUS", "MINUS", "MINUSD"}
 _OPERATORS = {"RLOLLI", "RARROW", "RAFFI", "LOLLI", "ARROW", "AFFI", "STAR", "AMP"}
 _ARROWS = _OPERATORS - {"STAR"}  # '*' is also a bound and a mode
 _DIRECTIVES = {"QUERY", "EXEC", "TRACE", "MODE"}
-_CLOSERS = ["_DOT", "_RPAR", "_RBRACE", "_RANGLE", "_COMMA", "_COLON", "_EQUAL"]
-_OPENER_OF = {"_RPAR": "LPAR", "_RBRACE": "LBRACE", "_RANGLE": "LANGLE"}
+_CLOSERS = ["_DOT", "_RPAR", "_RBRACE", "_RBRACKET", "_RANGLE", "_COMMA", "_COLON", "_EQUAL"]
+_OPENER_OF = {"_RPAR": "LPAR", "_RBRACE": "LBRACE", "_RANGLE": "LANGLE", "_RBRACKET": "LBRACKET"}
 _CLOSER_OF = {v: k for k, v in _OPENER_OF.items()}
 _IGNORED = {"WS", "LINE_COMMENT", "BLOCK_COMMENT"}
 _BOUND_HINT = {
@@ -246,8 +451,8 @@ _BOUND_HINT = {
     "EXEC": "#exec takes a step bound before its start type",
     "TRACE": "#trace takes a step bound before its start type",
 }
-_OTHER = {"NUMBER": "a natural number", "PROJ": "'#1' or '#2'", "NUMLIT": "a number", "STRING": "a string"}
-_WORD = re.compile(r"[A-Za-z0-9_']*")
+_OTHER = {"NUM": "a natural number", "PROJ": "'#1' or '#2'", "NUMLIT": "a number", "STRING": "a string"}
+_WORD = re.compile(_WORD_RE + "*")
 
 
 def _found(tok: Token) -> str:
@@ -256,11 +461,11 @@ def _found(tok: Token) -> str:
         return "end of file"
     if tok.type == "ID":
         return f"identifier '{tok}'"
-    if tok.type in ("NUMBER", "NUMLIT"):
+    if tok.type in ("NUM", "NUMLIT", "ONE") and tok.type in ("NUM", "NUMLIT"):
         return f"number {tok}"
     if tok.type == "STRING":
         return f"string {tok}"
-    if tok.type in ("TYPE", "PI", "EXISTS"):
+    if tok.type in ("TYPE", "PI", "EXISTS", "LPI", "LEXISTS", "LET", "IN"):
         return f"keyword '{tok}'"
     if tok.type in _DIRECTIVES:
         return f"directive '{tok}'"
@@ -278,12 +483,12 @@ def _expected(names: Iterable[str]) -> str:
     elif names & _DIRECTIVES and "ID" in names:
         parts += ["a declaration 'name : type.'", "a directive (#query, #exec, #trace, #mode)"]
         names -= _DIRECTIVES | {"ID"}
-    if {"NUMBER", "STAR"} <= names and not names & _ARROWS:
-        parts.append("a natural number or '*'")
-        names -= {"NUMBER", "STAR"}
+    if {"NUM", "ONE"} <= names and not names & _ARROWS and "ID" not in names:
+        parts.append("a natural number or '*'" if "STAR" in names else "a natural number")
+        names -= {"NUM", "ONE", "STAR"}
     if {"PLUS", "MINUS", "STAR"} <= names:
-        parts.append("a mode ('+', '-' or '*')")
-        names -= {"PLUS", "MINUS", "STAR"}
+        parts.append("a mode ('+', '-', '-D' or '*')")
+        names -= {"PLUS", "MINUS", "MINUSD", "STAR"}
     if "ID" in names:
         parts.append("an identifier")
     for n in _CLOSERS:
@@ -342,7 +547,7 @@ def _hints(e: UnexpectedToken, expected: set[str], text: str) -> list[str]:
         hints.append(f"the '{o}' at {o.line}:{o.column} is not closed")
 
     # A bound of #query/#exec/#trace that is not a number.
-    if {"NUMBER", "STAR"} <= expected and not expected & _ARROWS:
+    if {"NUM", "ONE"} <= expected and not expected & _ARROWS and "ID" not in expected:
         directive = next((t for t in reversed(toks) if t.type in _DIRECTIVES), None)
         if directive is not None and directive.type in _BOUND_HINT:
             hints.append(_BOUND_HINT[directive.type])
@@ -351,7 +556,7 @@ def _hints(e: UnexpectedToken, expected: set[str], text: str) -> list[str]:
     if isinstance(last, Token):
         before = stack[-2] if len(stack) > 1 else None
         after_mark = last.type in ("BANG", "AT") and isinstance(before, Token) and before.type == "LAMBDA"
-        if last.type in ("PI", "EXISTS", "LAMBDA") or after_mark:
+        if last.type in ("PI", "EXISTS", "LAMBDA", "LPI", "LEXISTS") or after_mark:
             binder = before if after_mark else last
             hints.append(f"'{binder}' must be followed by the name of the variable it binds")
         elif last.type == "_DOT" and tok.type in ("$END", "_DOT", "_RPAR", "_RBRACE", "_RANGLE", "_COMMA"):
@@ -374,7 +579,7 @@ def _starts_line(tok: Token, text: str) -> bool:
     """Is ``tok`` preceded on its line only by an identifier (``name :`` at line start)?"""
     start = tok.start_pos if tok.start_pos is not None else 0
     line_start = text.rfind("\n", 0, start) + 1
-    return re.fullmatch(r"\s*[A-Za-z_][A-Za-z0-9_']*\s*", text[line_start:start]) is not None
+    return re.fullmatch(r"\s*" + _WORD_RE + r"+\s*", text[line_start:start]) is not None
 
 
 def _convert(e: UnexpectedInput, text: str, file: str) -> SyntaxError_:
@@ -382,9 +587,11 @@ def _convert(e: UnexpectedInput, text: str, file: str) -> SyntaxError_:
     if isinstance(e, UnexpectedToken):
         tok = e.token
         expected = _accepted(e)
-        if tok.type == "NUMBER" and "NUMLIT" in expected and tok.start_pos is not None:
-            # digits where a number literal may stand, which the literal's pattern refused
-            return SyntaxError_(_bad_number(text, tok.start_pos), Pos(file, tok.line or 1, tok.column or 1))
+        stack = _stack(e)
+        last = stack[-1] if stack else None
+        if isinstance(last, Token) and last.type == "ID" and last.startswith("#") and expected == {"_COLON"}:
+            return SyntaxError_(f"unknown directive '{last}'; the directives are #query, #exec, #trace and #mode",
+                                Pos(file, last.line, last.column))
         if tok.type == "$END":
             line, col = (tok.end_line, tok.end_column) if tok.end_line else (tok.line, tok.column)
         else:
@@ -394,33 +601,21 @@ def _convert(e: UnexpectedInput, text: str, file: str) -> SyntaxError_:
         if hints:
             msg += " (" + "; ".join(hints) + ")"
         return SyntaxError_(msg, Pos(file, line or 1, col or 1))
-    if isinstance(e, UnexpectedCharacters):
-        return SyntaxError_(_bad_characters(e, text), Pos(file, e.line, e.column))
     if isinstance(e, UnexpectedEOF):  # not raised by LALR, but be safe
         return SyntaxError_("unexpected end of file", Pos(file, *_end(text)))
     return SyntaxError_(f"syntax error: {e}", Pos(file, getattr(e, "line", 1) or 1,
                                                    getattr(e, "column", 1) or 1))
 
 
-def _bad_characters(e: UnexpectedCharacters, text: str) -> str:
+def _bad_characters(text: str, pos: int) -> str:
     """Message for text that no token of the language matches at all."""
-    rest = text[e.pos_in_stream:]
-    if rest.startswith("%{"):
-        return "unterminated block comment: '%{' has no matching '}%'"
-    if rest.startswith("#"):
-        word = "#" + _WORD.match(rest, 1).group(0)
-        allowed = set(e.allowed or ())
-        if allowed & _DIRECTIVES or word[1:2].isalpha() and not allowed & {"PROJ"}:
-            return f"unknown directive '{word}'; the directives are #query, #exec, #trace and #mode"
-        return f"unexpected '{word}'; a projection is written '#1' or '#2'"
+    rest = text[pos:]
     if rest.startswith('"'):
         return _bad_string(rest)
-    if _NUMBER_START.match(rest):
-        return _bad_number(text, e.pos_in_stream)
     ch = rest[:1]
     shown = repr(ch) if not ch.isprintable() or ch in "'\\" else f"'{ch}'"
-    return (f"illegal character {shown}; identifiers are made of letters, digits, '_' and \"'\", "
-            f"and start with a letter or '_'")
+    return (f"illegal character {shown}; an identifier is a run of letters, digits and the characters "
+            f"- < > = / | _ ' * # + & ~ ; $ ?")
 
 
 _NUMBER_START = re.compile(r"-?[0-9]")

@@ -59,7 +59,8 @@ def _fmt(e: s.Expr, prec: int, tail: bool) -> str:
     if isinstance(e, s.Monad):
         return "{" + _fmt(e.body, _BINDER, True) + "}"
     if isinstance(e, s.Pair):
-        return f"<{_fmt(e.left, _BINDER, True)}, {_fmt(e.right, _BINDER, True)}>"
+        # `<` and `>` are identifier characters: they stand apart from what they enclose
+        return f"< {_fmt(e.left, _BINDER, True)}, {_fmt(e.right, _BINDER, True)} >"
     if isinstance(e, s.Proj):
         return f"{_fmt(e.body, _POST, False)} #{e.index}"
     if isinstance(e, s.App):

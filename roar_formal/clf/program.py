@@ -35,10 +35,15 @@ def _ends_in_monad(ty: Node) -> bool:
 class Program:
     """A checked, compiled CLF signature with its directives."""
 
-    def __init__(self, sig: Signature):
+    def __init__(self, sig: Signature, upto: Optional[int] = None):
         self.sig = sig
+        infos = list(sig.consts.values())
+        if upto is not None and 0 <= upto < len(infos):
+            infos = infos[:upto]  # a directive sees only the declarations before it
+        self._size = len(infos)
+        self._prefixes: dict[int, "Program"] = {}
         self.clauses: dict[Const, list[tuple[str, Node]]] = {}
-        for info in sig.consts.values():
+        for info in infos:
             if info.is_family or info.definition is not None:
                 continue
             for fam in head_families(info.classifier):
@@ -47,7 +52,7 @@ class Program:
         self.backward_families = frozenset(self.clauses) | BUILTIN_FAMILIES
         self.templates: list[Template] = []
         self.rule_names: list[str] = []
-        for info in sig.consts.values():
+        for info in infos:
             if info.is_family or info.definition is not None:
                 continue
             if _ends_in_monad(info.classifier):
@@ -55,6 +60,17 @@ class Program:
                 self.rule_names.append(info.name)
         self._ctx_cache: dict = {}
         self.implicit = {info.const: info.implicit for info in sig.consts.values()}
+
+    def at(self, prefix: int) -> "Program":
+        """The program of the first ``prefix`` declarations (Celf checks and runs a file one
+        declaration at a time, so a directive sees only what is declared before it);
+        ``self`` when that is every declaration (or ``prefix`` is -1)."""
+        if prefix < 0 or prefix >= self._size:
+            return self
+        p = self._prefixes.get(prefix)
+        if p is None:
+            p = self._prefixes[prefix] = Program(self.sig, prefix)
+        return p
 
     def indexed_clauses(self, fam) -> list:
         """The clauses of ``fam`` with their head skeletons (backward.clause_skeleton), cached."""

@@ -61,13 +61,20 @@ class DirectiveResult:
 
 def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable[[str], None] = print,
               fair: bool = False, proofs: bool = False) -> DirectiveResult:
+    """Run ``#query d e l a A`` as Celf does: up to ``a`` attempts, each looking for ``l``
+    solutions; the query succeeds as soon as one attempt finds ``e`` of them. A query with
+    ``l = 0`` or ``a = 0`` is ignored."""
+    res = DirectiveResult("query", True)
+    if q.look == 0 or q.attempts == 0:
+        return res
+    program = program.at(q.prefix)
     show = program.show
     head = f"Query ({_b(q.depth)}, {_b(q.expected)}, {_b(q.look)}, {_b(q.attempts)}) {show(q.goal)}."
     emit(head)
-    res = DirectiveResult("query", True)
     attempts = 1 if q.attempts == "*" else q.attempts
     look = None if q.look == "*" else q.look
     depth = None if q.depth == "*" else q.depth
+    counts = []
     for attempt in range(attempts):
         if attempts > 1:
             emit(f"Iteration {attempt + 1}")
@@ -91,20 +98,27 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
         except BuiltinError as exc:
             raise BuiltinError(exc.message, exc.pos or q.pos, exc.notes) from None
         res.solutions += count
+        counts.append(count)
         if count == 0:
             emit("No solution.")
-        if q.expected != "*" and count != q.expected:
-            res.ok = False
-            emit("Query error.")
-            raise QueryError(f"query expected {q.expected} solution{'s' if q.expected != 1 else ''}, "
-                             f"found {count}", q.pos)
-    emit("Query ok.")
-    return res
+        if q.expected == "*" or count == q.expected:
+            emit("Query ok.")
+            return res
+    res.ok = False
+    emit("Query error.")
+    found = counts[0] if len(counts) == 1 else "/".join(str(c) for c in counts)
+    tries = "" if len(counts) == 1 else f" in any of {len(counts)} attempts (found {found})"
+    if tries:
+        raise QueryError(f"query failed: expected {q.expected} solution{'s' if q.expected != 1 else ''}"
+                         f"{tries}", q.pos)
+    raise QueryError(f"query failed: expected {q.expected} solution{'s' if q.expected != 1 else ''}, "
+                     f"found {found}", q.pos)
 
 
 def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[str], None] = print,
              trace: bool = False, fair: bool = False) -> DirectiveResult:
     kw = "Trace" if d.trace else "Exec"
+    program = program.at(d.prefix)
     emit(f"{kw} ({_b(d.steps)}) {program.show(d.start)}.")
     ctx = program.start_context(d.start)
     res = DirectiveResult("exec", True)
@@ -148,6 +162,29 @@ def run_directives(program: Program, seed: int = 0, emit: Callable[[str], None] 
     return out
 
 
+def run_file(path, seed: int = 0, emit: Callable[[str], None] = print, trace: bool = False,
+             fair: bool = False, proofs: bool = False, strict: bool = True) -> list[DirectiveResult]:
+    """Check and run a Celf file the way Celf does: one item at a time, so each directive
+    runs (and prints) before the declarations after it are checked, and sees only the
+    declarations before it; the first error (parse, type, mode, or a failed directive) stops."""
+    from .parser import parse_file
+    from .signature import elaborate_steps
+
+    parsed = parse_file(str(path))
+    out = []
+    program = None
+    for sig, d in elaborate_steps(parsed, strict=strict):
+        if d is None:
+            continue
+        if program is None or program._size != len(sig.consts):
+            program = Program(sig)
+        if isinstance(d, QueryDirective):
+            out.append(run_query(program, d, seed, emit, fair, proofs))
+        else:
+            out.append(run_exec(program, d, seed, emit, trace, fair))
+    return out
+
+
 def with_big_stack(fn, *args, **kwargs):
     """Run ``fn`` in a thread with a large stack: proof search and deep terms recurse."""
     result: dict = {}
@@ -174,4 +211,4 @@ def with_big_stack(fn, *args, **kwargs):
     return result.get("value")
 
 
-__all__ = ["run_query", "run_exec", "run_directives", "show_context", "with_big_stack", "RoarError"]
+__all__ = ["run_query", "run_exec", "run_directives", "run_file", "show_context", "with_big_stack", "RoarError"]

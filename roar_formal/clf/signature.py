@@ -19,10 +19,14 @@ from ..errors import Pos, TypeError_, UnsupportedError
 from . import surface as S
 from .builtins import BUILTIN_FAMILIES, BUILTIN_TYPES, BUILTINS, is_builtin, kind_of
 from .printer import IMPLICIT, show
-from .terms import (NUMBER, STRING, Aff, Bang, Const, EVar, Exists, Imp, Lam, Monad, Node, One, Param, Pi, Root,
+from .terms import (NUMBER, STRING, Aff, Bang, BVar, Const, EVar, Exists, Imp, Lam, Monad, Node, One, Param, Pi, Root,
                     Tensor, Top, Type, TypeNode, With, abstract, apply, deref, free_evars, num_term, param_term,
                     string_term, subst, subst1, zonk)
 from .unify import Unifier
+
+
+class ModeError(TypeError_):
+    """A clause that is not well-moded for its family's ``#mode`` declaration (Celf's "mode error")."""
 
 
 @dataclass
@@ -56,6 +60,7 @@ class QueryDirective:
     attempts: object
     goal: Node
     logic_vars: list  # (name, EVar) in order of first occurrence
+    prefix: int = -1  # how many declarations precede it (it sees only those); -1: all
 
 
 @dataclass
@@ -64,6 +69,7 @@ class ExecDirective:
     steps: object
     start: Node
     trace: bool
+    prefix: int = -1  # how many declarations precede it (it sees only those); -1: all
 
 
 @dataclass
@@ -76,11 +82,15 @@ class Signature:
     consts: dict[str, ConstInfo] = field(default_factory=dict)
     directives: list = field(default_factory=list)
     modes: dict[str, tuple] = field(default_factory=dict)
+    implicit_modes: dict[str, tuple] = field(default_factory=dict)  # from ``#mode p {+} ...``
     file: str = "<input>"
 
     def lookup(self, name: str) -> Optional[ConstInfo]:
         info = self.consts.get(name)
         return info if info is not None else BUILTIN_INFOS.get(name)
+
+
+_LAM_MARK = {"linear": "", "affine": "@", "persistent": "!"}
 
 
 def _is_kind(e: S.Expr) -> bool:
@@ -102,8 +112,12 @@ def _is_upper(name: str) -> bool:
 class Elaborator:
     """Elaborates one program item at a time into a :class:`Signature`."""
 
-    def __init__(self, sig: Signature):
+    def __init__(self, sig: Signature, strict: bool = False):
         self.sig = sig
+        # Celf's typing of persistent functions: `\x.` is a linear lambda and `L a` a linear
+        # application, so a persistent function is written `\!x. M` and applied as `L !a`
+        # when L is a bound variable (constants and upper-case variables take `a` as `!a`)
+        self.strict = strict
 
     # ------------------------------------------------------------ entry points
     def declare(self, d: S.Decl) -> ConstInfo:
@@ -142,7 +156,7 @@ class Elaborator:
         self._solve_postponed(q.pos)
         goal = zonk(goal)
         named = [(n, x) for n, x in self.free.items()]
-        return QueryDirective(q.pos, q.depth, q.expected, q.look, q.attempts, goal, named)
+        return QueryDirective(q.pos, q.depth, q.expected, q.look, q.attempts, goal, named, len(self.sig.consts))
 
     def exec_(self, e: S.Exec) -> ExecDirective:
         self._begin()
@@ -155,7 +169,7 @@ class Elaborator:
         left = free_evars(start)
         if left:
             raise TypeError_("the start context of #exec has parts that cannot be inferred", e.pos)
-        return ExecDirective(e.pos, e.steps, start, e.trace)
+        return ExecDirective(e.pos, e.steps, start, e.trace, len(self.sig.consts))
 
     # ------------------------------------------------------------ state
     def _begin(self) -> None:
@@ -451,6 +465,13 @@ class Elaborator:
                 b_ty = Root(self._evar("cod", Type(), scope_of=fx), ())
                 self._unify(fty, Imp("!", a_ty, b_ty), e.pos, "an application")
                 fty = deref(fty)
+            if self.strict and e.mark is None and (isinstance(fty, Pi) or (isinstance(fty, Imp) and fty.mode == "!")):
+                head, _ = _spine(e)
+                if isinstance(head, S.Id) and self._is_bound(head.name):
+                    raise TypeError_(
+                        f"'{head.name}' is a bound variable of a persistent function type, applied to a linear "
+                        f"argument: Celf writes the application '{head.name} !...'", e.arg.pos,
+                        [f"type of '{head.name}' here: {self._show(fty)}"])
             if isinstance(fty, Pi):
                 a = self.check(e.arg, fty.dom)
                 return apply(f, (a,)), subst1(fty.body, a)
@@ -477,7 +498,11 @@ class Elaborator:
             return Root(self._evar("_", tyv), ()), tyv
         if isinstance(e, S.Lam):
             if e.ty is not None:
-                dom = self.neg(e.ty)
+                dom = self._lam_annotation(e)
+                if self.strict and e.mode != "persistent":
+                    raise TypeError_(
+                        f"the lambda '\\{_LAM_MARK[e.mode]}{e.var}:...' is {e.mode}; where its type is not given "
+                        f"from outside only a persistent lambda '\\!{e.var}:!A. M' can be an index term", e.pos)
                 p = self._open(e.var, dom)
                 body, bty = self.infer(e.body)
                 bty = zonk(bty)
@@ -488,9 +513,34 @@ class Elaborator:
             raise UnsupportedError(f"{_describe(e)} as an index term is not supported", e.pos)
         raise TypeError_(f"expected a term, found {_describe(e)}", e.pos)
 
+    def _lam_annotation(self, e: S.Lam) -> Node:
+        """The domain given by a lambda's annotation: `\\x:A`, `\\!x:!A`, `\\@x:@A` (Celf's shapes)."""
+        ty = e.ty
+        want = {"persistent": S.Bang, "affine": S.Affine}.get(e.mode)
+        if want is not None and isinstance(ty, want):
+            return self.neg(ty.body)
+        if isinstance(ty, (S.Bang, S.Affine)):
+            mark = "!" if isinstance(ty, S.Bang) else "@"
+            raise TypeError_(f"the pattern '{_LAM_MARK[e.mode]}{e.var}' of this lambda does not match its type "
+                             f"'{mark}...'; write '\\{mark}{e.var}:{mark}A'", ty.pos)
+        if want is not None and self.strict:
+            mark = _LAM_MARK[e.mode]
+            raise TypeError_(f"the pattern '{mark}{e.var}' needs a type '{mark}A' (Celf: '\\{mark}{e.var}:{mark}A. M')",
+                             ty.pos)
+        return self.neg(ty)
+
     def check(self, e: S.Expr, ty: Node) -> Node:
         ty = deref(ty)
+        if isinstance(e, S.Lam) and (e.ty is not None and isinstance(deref(ty), (Pi, Imp))):
+            dom = self._lam_annotation(e)
+            self._unify(deref(ty).dom, dom, e.ty.pos, "the type of a lambda's variable")
+            e = S.Lam(e.pos, e.var, e.body, e.mode, None)
         if isinstance(e, S.Lam) and e.ty is None:
+            if self.strict and e.mode != "persistent" and isinstance(ty, Pi) or (
+                    self.strict and e.mode != "persistent" and isinstance(ty, Imp) and ty.mode == "!"):
+                raise TypeError_(
+                    f"a {e.mode} lambda '\\{_LAM_MARK[e.mode]}{e.var}.' is given where a persistent function is "
+                    f"expected: Celf writes '\\!{e.var}. ...'", e.pos, [f"expected: {self._show(ty)}"])
             if isinstance(ty, Root) and type(ty.head) is EVar:
                 fx = ty.head
                 a_ty = Root(self._evar("dom", Type(), scope_of=fx), ())
@@ -577,24 +627,143 @@ def _describe(e: S.Expr) -> str:
     return names.get(type(e), lambda e: type(e).__name__)(e)
 
 
-def elaborate(program: S.Program) -> Signature:
-    """Check every item of a parsed program, in order; the first error stops."""
-    sig = Signature(file=program.file)
-    el = Elaborator(sig)
+def _declare_mode(sig: Signature, item: S.Mode) -> None:
+    info = sig.lookup(item.family)
+    if info is None or not info.is_family:
+        raise TypeError_(f"#mode names '{item.family}', which is not a declared type family", item.pos)
+    explicit = _arity(info.classifier) - info.implicit
+    if len(item.modes) != explicit:
+        raise TypeError_(f"#mode for '{item.family}' gives {len(item.modes)} modes for {explicit} arguments",
+                         item.pos)
+    if item.implicit is not None and len(item.implicit) != info.implicit:
+        raise TypeError_(f"#mode for '{item.family}' gives {len(item.implicit)} modes in braces for "
+                         f"{info.implicit} implicit argument{'s' if info.implicit != 1 else ''}", item.pos)
+    sig.modes[item.family] = item.modes
+    if item.implicit is not None:
+        sig.implicit_modes[item.family] = item.implicit
+
+
+def _vars_of(t: Node, depth: int, acc: set, lam: int = 0) -> None:
+    """The outer binders (numbered from the outside, 0 first) that a term mentions."""
+    if not t.maxb:
+        return
+    tt = type(t)
+    if tt is Root:
+        h = t.head
+        if type(h) is BVar and h.index >= lam:
+            acc.add(depth - 1 - (h.index - lam))
+        for a in t.args:
+            _vars_of(a, depth, acc, lam)
+    elif tt is Lam:
+        _vars_of(t.body, depth, acc, lam + 1)
+    elif isinstance(t, TypeNode):
+        for f in type(t).fields:
+            v = getattr(t, f)
+            if isinstance(v, Node):
+                _vars_of(v, depth, acc, lam + (1 if isinstance(t, (Pi, Exists)) and f == "body" else 0))
+
+
+def _modes_of(sig: Signature, fam: Const) -> Optional[tuple]:
+    """The mode of every argument of a moded family, implicit ones first ('*': not checked)."""
+    modes = sig.modes.get(fam.name)
+    if modes is None:
+        return None
+    info = sig.lookup(fam.name)
+    implicit = sig.implicit_modes.get(fam.name) or ("*",) * info.implicit
+    return tuple(implicit) + tuple(modes)
+
+
+def mode_check(sig: Signature, info: ConstInfo) -> None:
+    """Celf's mode check of a backward clause ``Pi xs. A1 -> ... -> p ts`` for a moded family.
+
+    The variables in the head's input (``+``) arguments are ground when the clause is
+    used; each premise (solved innermost first, as proof search does) needs its inputs
+    ground and makes its outputs ground; at the end every variable of the head's
+    output (``-``) arguments must be ground."""
+    ty = info.classifier
+    names: list[str] = []
+    premises: list[tuple[Node, int]] = []
+    while True:
+        tt = type(ty)
+        if tt is Pi:
+            names.append(ty.hint)
+            ty = ty.body
+        elif tt is Imp:
+            premises.append((ty.dom, len(names)))
+            ty = ty.body
+        else:
+            break
+    if type(ty) is not Root or not isinstance(ty.head, Const):
+        return
+    modes = _modes_of(sig, ty.head)
+    if modes is None:
+        return
+    depth = len(names)
+    known: set = set()
+    for m, a in zip(modes, ty.args):
+        if m == "+":
+            _vars_of(a, depth, known)
+    fam = ty.head.name
+    shown = " ".join(sig.modes[fam])
+    for prem, d in reversed(premises):
+        pm = _modes_of(sig, prem.head) if type(prem) is Root and isinstance(prem.head, Const) else None
+        if pm is None:
+            _vars_of(prem, d, known)
+            continue
+        for k, (m, a) in enumerate(zip(pm, prem.args)):
+            if m != "+":
+                continue
+            need: set = set()
+            _vars_of(a, d, need)
+            missing = sorted(need - known)
+            if missing:
+                raise ModeError(
+                    f"mode error: {names[missing[0]]} not necessarily ground (an input of the premise "
+                    f"'{prem.head.name}' in '{info.name}')", info.pos,
+                    [f"#mode {prem.head.name} {' '.join(sig.modes[prem.head.name])}"])
+        for m, a in zip(pm, prem.args):
+            if m != "+":
+                _vars_of(a, d, known)
+    for k, (m, a) in enumerate(zip(modes, ty.args)):
+        if m not in ("-", "-D"):
+            continue
+        need = set()
+        _vars_of(a, depth, need)
+        missing = sorted(need - known)
+        if missing:
+            raise ModeError(f"mode error: {names[missing[0]]} not necessarily ground (an output of '{info.name}')",
+                            info.pos, [f"#mode {fam} {shown}"])
+
+
+def elaborate_steps(program: S.Program, sig: Optional[Signature] = None, strict: bool = False):
+    """Check a parsed program one item at a time, as Celf does, yielding the signature
+    after each item together with the directive it made (or None)."""
+    sig = sig if sig is not None else Signature(file=program.file)
+    el = Elaborator(sig, strict)
     for item in program.items:
+        directive = None
         if isinstance(item, S.Decl):
-            el.declare(item)
+            info = el.declare(item)
+            if sig.modes and not info.is_family and info.definition is None:
+                mode_check(sig, info)
         elif isinstance(item, S.Query):
-            sig.directives.append(el.query(item))
+            directive = el.query(item)
+            sig.directives.append(directive)
         elif isinstance(item, S.Exec):
-            sig.directives.append(el.exec_(item))
+            directive = el.exec_(item)
+            sig.directives.append(directive)
         elif isinstance(item, S.Mode):
-            info = sig.lookup(item.family)
-            if info is None or not info.is_family:
-                raise TypeError_(f"#mode names '{item.family}', which is not a declared type family", item.pos)
-            explicit = _arity(info.classifier) - info.implicit
-            if len(item.modes) != explicit:
-                raise TypeError_(f"#mode for '{item.family}' gives {len(item.modes)} modes for {explicit} arguments",
-                                 item.pos)
-            sig.modes[item.family] = item.modes
+            _declare_mode(sig, item)
+        yield sig, directive
+
+
+def elaborate(program: S.Program, strict: bool = False) -> Signature:
+    """Check every item of a parsed program, in order; the first error stops.
+
+    ``strict``: Celf's typing of persistent functions (``\\!x.`` lambdas, ``L !a``
+    applications of bound variables); the library default accepts ``\\x.`` and
+    ``L a`` for them too, which the ROAR framework signature relies on."""
+    sig = Signature(file=program.file)
+    for _ in elaborate_steps(program, sig, strict):
+        pass
     return sig

@@ -169,8 +169,63 @@ class Annot(Node):
     ty: "Expr"
 
 
+@dataclass(frozen=True)
+class PVar(Node):
+    """A pattern variable: ``x`` (linear), ``!x`` (persistent) or ``@x`` (affine)."""
+
+    name: str
+    mode: Literal["linear", "affine", "persistent"] = "linear"
+
+
+@dataclass(frozen=True)
+class PBlank(Node):
+    """``_``, ``!_`` or ``@_`` in a ``PI``/``EXISTS`` pattern."""
+
+    mode: Literal["linear", "affine", "persistent"] = "linear"
+
+
+@dataclass(frozen=True)
+class POne(Node):
+    """``1`` as a pattern."""
+
+
+@dataclass(frozen=True)
+class PTuple(Node):
+    """``[p1, p2, ...]``: a pattern for a tensor (right nested)."""
+
+    items: tuple
+
+
+Pattern = Union[PVar, PBlank, POne, PTuple]
+
+
+@dataclass(frozen=True)
+class PatLam(Node):
+    """``\\[x, y]. M`` or ``\\1. M``: a lambda whose pattern is not a single variable."""
+
+    pattern: Pattern
+    ty: Optional["Expr"]
+    body: "Expr"
+
+
+@dataclass(frozen=True)
+class Tuple(Node):
+    """``[M, N, ...]``: a monadic object of a tensor type (Celf's proof-term syntax)."""
+
+    items: tuple
+
+
+@dataclass(frozen=True)
+class Let(Node):
+    """``let {p} = M in E`` inside a monadic proof term ``{...}``."""
+
+    pattern: Pattern
+    value: "Expr"
+    body: "Expr"
+
+
 Expr = Union[Id, TypeKw, One, Num, Str, Underscore, App, Lam, Pi, Exists, Arrow, Tensor, With,
-             Bang, Affine, Monad, Pair, Proj, Annot]
+             Bang, Affine, Monad, Pair, Proj, Annot, PatLam, Tuple, Let]
 
 Bound = Union[int, Literal["*"]]
 
@@ -209,7 +264,8 @@ class Mode(Node):
     """``#mode p + - .``"""
 
     family: str
-    modes: tuple[Literal["+", "-", "*"], ...]
+    modes: tuple[Literal["+", "-", "-D", "*"], ...]
+    implicit: Optional[tuple[Literal["+", "-", "-D", "*"], ...]] = None  # ``#mode p {+} + -.``
 
 
 Item = Union[Decl, Query, Exec, Mode]

@@ -157,7 +157,7 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
     weak fairness per agent, requests reaching a final state as progress (by default)."""
     from ..roar.commands import functional_module, load_registry
     from ..roar.compile import compile_spec
-    from ..roar.explore import PROGRESS_RULES, RoarSystem, roar_final, sequential_pairs
+    from ..roar.explore import RoarSystem, roar_final
     from ..roar.parser import load_spec
     from ..trace.fingerprint import spec_fingerprint
     t0 = time.perf_counter()
@@ -166,19 +166,8 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
     spec_ast = load_spec(job.spec)
     fingerprint = spec_fingerprint(job.spec, spec_ast, fn_path)
     model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract")
-    program = model.program()
-    start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
-    start = program.start_context(start_d.start)
+    program, start, options, pairs = roar_setup(job, model)
     props = job.props
-    options = Options(progress_rules=tuple(props.progress) or PROGRESS_RULES, fairness="agent",
-                      canonical=job.canonical)
-    pairs = []
-    if "sequential-achievement" in props.check:
-        pairs = [p for p in sequential_pairs(model) if not props.sequence_recipes or p.where in props.sequence_recipes]
-        missing = set(props.sequence_recipes) - {p.where for p in sequential_pairs(model)}
-        if missing:
-            raise RoarError(f"{job.path}: [sequential-achievement] names recipes with no 'make A; make B' pair: "
-                            f"{', '.join(sorted(missing))}")
     never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check else None
     reduction = "off"
     if job.reduction:
@@ -222,6 +211,26 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
                     reduction, fingerprint)
     res.roar = (model, start, explorer)
     return res
+
+
+def roar_setup(job: Job, model) -> tuple:
+    """(program, start context, options, sequential pairs) of a job on a compiled spec: weak
+    fairness per agent, the property files' progress rules (or requests reaching a final state)."""
+    from ..roar.explore import PROGRESS_RULES, sequential_pairs
+    program = model.program()
+    start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
+    start = program.start_context(start_d.start)
+    props = job.props
+    options = Options(progress_rules=tuple(props.progress) or PROGRESS_RULES, fairness="agent",
+                      canonical=job.canonical)
+    pairs = []
+    if "sequential-achievement" in props.check:
+        pairs = [p for p in sequential_pairs(model) if not props.sequence_recipes or p.where in props.sequence_recipes]
+        missing = set(props.sequence_recipes) - {p.where for p in sequential_pairs(model)}
+        if missing:
+            raise RoarError(f"{job.path}: [sequential-achievement] names recipes with no 'make A; make B' pair: "
+                            f"{', '.join(sorted(missing))}")
+    return program, start, options, pairs
 
 
 def _reduction_options(options: Options, props, never) -> None:

@@ -19,13 +19,11 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
-from ..clf.signature import ExecDirective
 from ..errors import Pos, RoarError
-from ..explore.check import JobResult, _rounds, make_never
+from ..explore.check import JobResult, _rounds, make_never, roar_setup
 from ..explore.jobs import Job
 from ..explore.properties import Verdict, check_deadlock, check_livelock, check_states
 from ..explore.search import Explorer, rss_mb
-from ..explore.system import Options
 from .explore import Abstraction, FaultChoices, RobotSystem, RobotTree
 
 __all__ = ["run_robot_job", "RobotInvariant", "RobotRun"]
@@ -142,7 +140,6 @@ def _check_faults(job: Job, scenario, model) -> None:
 
 def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
     from ..roar.compile import compile_spec
-    from ..roar.explore import PROGRESS_RULES, sequential_pairs
     from ..roar.parser import load_spec
     from ..trace.fingerprint import spec_fingerprint
     from .binding import load_robot_binding
@@ -156,15 +153,8 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
     model = compile_spec(spec_ast, job.request, registry=binding.robot, functional="python")
     _check_faults(job, scenario, model)
     conditions = _conditions(job, scenario) if "robot-invariant" in job.props.check else []
-    program = model.program()
-    start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
-    start = program.start_context(start_d.start)
+    program, start, options, pairs = roar_setup(job, model)
     props = job.props
-    options = Options(progress_rules=tuple(props.progress) or PROGRESS_RULES, fairness="agent",
-                      canonical=job.canonical)
-    pairs = []
-    if "sequential-achievement" in props.check:
-        pairs = [p for p in sequential_pairs(model) if not props.sequence_recipes or p.where in props.sequence_recipes]
     never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check else None
     abstraction = setup.quantise or Abstraction()
     choices = FaultChoices(dict(setup.faults))

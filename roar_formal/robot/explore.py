@@ -610,16 +610,20 @@ class RobotSystem(RoarSystem):
                 produced.append((LIN, mark))
                 handles[f.args[2]] = h
                 continue
-            ans = _answer(f, result_term(self.model, self.values, fc, res))
-            nxt.remove_fact(f, LIN)
-            nxt.add_fact(ans, LIN)
-            consumed.append((LIN, f))
-            produced.append((LIN, ans))
-            parts.append(_Part("functional_layer", [(LIN, f)], [(LIN, ans)]))
+            self._answer_call(nxt, f, fc, res, consumed, produced, parts)
         step = RobotStep("functional_layer" if parts else "robot_launch", consumed, produced, event, parts, shown)
         if self.pairs:
             self._monitor(state.ctx, nxt, step)
         return Successor(_launch_label(event), ROBOT_GROUP, False, RobotState(nxt, node, handles), step)
+
+    def _answer_call(self, nxt: Context, f, fc: str, res: CallResult, consumed, produced, parts) -> None:
+        """Answer pending call ``f`` with ``res`` in ``nxt`` (one narratable part of the step)."""
+        ans = _answer(f, result_term(self.model, self.values, fc, res))
+        nxt.remove_fact(f, LIN)
+        nxt.add_fact(ans, LIN)
+        consumed.append((LIN, f))
+        produced.append((LIN, ans))
+        parts.append(_Part("functional_layer", [(LIN, f)], [(LIN, ans)]))
 
     # ------------------------------------------------------------------ the physics advancing
     def _advance(self, state: RobotState) -> Successor:
@@ -647,12 +651,7 @@ class RobotSystem(RoarSystem):
             if f is None:
                 continue
             fc = f.args[0].head.name
-            ans = _answer(f, result_term(self.model, self.values, fc, res))
-            nxt.remove_fact(f, LIN)
-            nxt.add_fact(ans, LIN)
-            consumed.append((LIN, f))
-            produced.append((LIN, ans))
-            parts.append(_Part("functional_layer", [(LIN, f)], [(LIN, ans)]))
+            self._answer_call(nxt, f, fc, res, consumed, produced, parts)
             owner, name = self.model.functions[fc]
             self.tree._classify(fc, res)
             shown.append((f"{owner}::{name}" if owner else name, None, res))
