@@ -299,6 +299,51 @@ class AgentSpec:
                   functional=self.functional)
         return _explore(job)
 
+    def explore_on_robot(self, request: str, scenario: PathLike,
+                         properties: Sequence[str] = ("deadlock", "livelock"), *,
+                         faults: Union[Sequence[str], dict] = (), on: Sequence[str] = (), seed: int = 0,
+                         quantise: Any = None, robot_never: Sequence[str] = (), robot_always: Sequence[str] = (),
+                         never: Sequence[str] = (), progress: Sequence[str] = (), budget: BudgetLike = None,
+                         compare: bool = False, name: Optional[str] = None) -> "Exploration":
+        """Explore with the reference robot as the functional layer (docs/robot.md, robot-backed
+        checking): every interleaving, every order of starting pending calls, and every choice of
+        the fault points ``faults`` (a list: armed at any call; a dict: fault point -> the
+        primitives at whose calls it may be armed). ``quantise`` is ``"exact"``, a dict
+        (position, heading, speed, clock, memory) or an ``Abstraction``; ``robot_never`` /
+        ``robot_always`` are conditions on the robot state (``"contact"``) checked at every tick."""
+        from ..explore.jobs import Job, PropertySpec, RobotSetup
+        from ..robot.explore import Abstraction
+        allowed = ROAR_PROPERTIES + ("robot-invariant",)
+        props = _properties([p for p in properties if p != "robot-invariant"], never, allowed)
+        pos = _caller_pos()
+        if robot_never or robot_always:
+            props.append("robot-invariant")
+        ps = PropertySpec(check=props, progress=list(progress))
+        ps.never = [(p, pos) for p in never]
+        ps.robot_never = [(c, pos) for c in robot_never]
+        ps.robot_always = [(c, pos) for c in robot_always]
+        if isinstance(quantise, str):
+            if quantise != "exact":
+                raise RoarError(f"quantise is 'exact', a dict or an Abstraction, not {quantise!r}", pos)
+            quantise = Abstraction(exact=True)
+        elif isinstance(quantise, dict):
+            try:
+                quantise = Abstraction(**quantise)
+            except TypeError as exc:
+                raise RoarError(f"quantise: {exc}; keys: position, heading, speed, clock, memory", pos) from None
+        if isinstance(faults, dict):
+            fault_at = {n: None if at is None else frozenset([at] if isinstance(at, str) else at)
+                        for n, at in faults.items()}
+        else:
+            fault_at = {n: None for n in ([faults] if isinstance(faults, str) else faults)}
+        setup = RobotSetup(scenario=Path(scenario).resolve(), seed=seed, faults=fault_at, on=tuple(on),
+                           quantise=quantise, compare=compare, pos=pos)
+        spec_path = self._file()
+        job = Job(path=spec_path, name=name or _job_name(self.name, request), model=None, props=ps,
+                  budget=as_budget(budget), spec=spec_path, request=request, functional=self.functional,
+                  robot=setup)
+        return _explore(job)
+
     def _file(self) -> Path:
         if self.path is None:
             raise RoarError(f"{self.name}: a spec built from a tree has no file to explore; use AgentSpec.from_text")
