@@ -466,8 +466,12 @@ class _Compiler:
             self.send(ag, st, cx, s, head)
         elif isinstance(st, a.Abort):
             k = env.index(st.handle)
+            # abort gives up ownership: the request's emitter becomes `irel`, so that nothing of it
+            # (a temporary failure, a continue) reaches this activation afterwards
             self.rules.append(f"{head} -o act I R0 T0 Rc0 (s N) -o !nth E {nat(k)} (vreq R) -o owns I R _\n"
-                              f"  -o {{ctl I m_run C E * rstat I go * act I R0 T0 Rc0 N * abortreq R}}.")
+                              f"  -o rq R Ar Cr I Kr\n"
+                              f"  -o {{ctl I m_run C E * rstat I go * act I R0 T0 Rc0 N * abortreq R"
+                              f" * rq R Ar Cr irel Kr}}.")
         else:  # wait, assert
             cond = self.pexp(st.cond, cx)
             prem, outs = self.premises(cx)
