@@ -238,8 +238,10 @@ class RoarSystem(ClfSystem):
         cells: dict = {}
         rq = {f.args[0]: _h(f.args[2]) for f in _facts(state, "rq")}
         for f in _facts(state, "hs"):
-            if _h(f.args[1]) in ("h_select", "h_dec") and _h(f.args[5]) == "vsome":
-                continue   # not accepted yet: its where values are not written
+            if _h(f.args[5]) == "vsome":
+                # its where values are not written yet: still deciding (h_select, h_dec), or
+                # waiting after a conflict (h_cwait) until the holder releases the task
+                continue
             c = rq.get(f.args[0])
             for cell in self.where_cells.get(c, ()):
                 cells.setdefault(cell, []).append(c)
