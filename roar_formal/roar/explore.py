@@ -31,7 +31,9 @@ from ..explore.system import ClfSystem, Options, Successor
 from .compile import CompiledModel
 
 #: rules whose step brings a request to a final state (the default progress events)
-PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_again", "no_task", "post_violated",
+PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_again", "written_holds_again_top",
+                  "written_holds_held", "written_holds_again_held", "written_holds_again_held_top",
+                  "no_task", "post_violated",
                   "conflict_failed", "aborted", "aborted_idle")
 FINAL_STATES = ("s_success", "s_failure")
 

@@ -38,3 +38,20 @@ def test_abort_racing_a_temporary_failure_deadlocks_no_more():
     for s in finals:
         cells = {f.args[0].head.name: f.args[1] for _m, f, _n in states[s].facts() if _name(f) == "contains"}
         assert _name(cells["v_boss_done"].args[0]) == "tt"
+
+
+def test_an_ensure_that_holds_on_arrival_is_held_and_its_abort_processed():
+    res = run_job(job_for_model(Path(__file__).parent / "data" / "ensure_holds.roar", "boss::done == true",
+                                ["deadlock"]))
+    assert res.graph.complete and res.verdicts["deadlock"].status == "holds"
+    states = res.roar[2].states
+    system = res.roar[2].system
+    finals = [s for s in range(res.graph.n_states) if not system.successors(states[s])]
+    assert finals
+    for s in finals:
+        names = [_name(f) for _m, f, _n in states[s].facts()]
+        assert "abortreq" not in names, "the ensure's abort was never processed"
+        assert names.count("rq") == 1   # only the outside request R0 is left
+    held = any(_name(f) == "hs" and _name(f.args[1]) == "h_held"
+               for sid in range(res.graph.n_states) for _m, f, _n in states[sid].facts())
+    assert held, "the ensure was never held"
