@@ -127,6 +127,11 @@ def test_replay_cli_on_a_robot_counterexample(tmp_path, roar_cli):
     assert code == 2 and "another scenario" in err
     code, out, err = roar_cli("replay", path, "--model", model)
     assert code == 2 and "--on-robot" in err
+    # the same trace is a ROAR run TCA reads: its requests and calls as a task tree
+    code, out, err = roar_cli("tca-check", path)
+    assert code == 0, out + err
+    n = int(out.split(": ", 1)[1].split(" messages")[0])
+    assert n > 0 and "no violations" in out
 
 
 def test_cable_reproduces_the_conflict_livelock_as_a_lasso():
