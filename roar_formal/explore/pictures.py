@@ -243,6 +243,13 @@ def write_pictures(res, png: Path | None, svg: Path | None, dot: Path | None, in
                 data = render_chart(res, p, fmt)
             write_atomic_bytes(path, data)
             out.setdefault(p, []).append(path)
+        robot = getattr(res, "robot", None)
+        if robot is not None and png is not None:   # robot-backed: the trajectory as well
+            path = Path(png) / f"{stem}.robot.png"
+            if path.resolve() in inputs_resolved:
+                raise RoarError(f"{path}: is an input of this command; not overwritten")
+            robot.draw_counterexample(res, p, path)
+            out.setdefault(p, []).append(path)
     return out
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 from ..errors import Pos, RoarError
-from ..explore.check import JobResult, _rounds, make_never, roar_setup
+from ..explore.check import JobResult, _rounds, make_never, mark_defaults, roar_setup, spec_properties
 from ..explore.jobs import Job
 from ..explore.properties import Verdict, check_deadlock, check_livelock, check_states
 from ..explore.search import Explorer, rss_mb
@@ -70,6 +70,27 @@ class RobotRun:
                 "faults": {n: None if at is None else sorted(at) for n, at in self.faults.items()},
                 "abstraction": self.abstraction.as_json(), "dt": self.scenario.dt,
                 "horizon": float(self.scenario.horizon)}
+
+    def draw_counterexample(self, res, prop: str, path) -> None:
+        """The counterexample of ``prop`` driven on a straight robot, drawn as its trajectory
+        (the pan angle for a pan unit) with the failing point marked: where a robot invariant
+        broke, else where the path ends or the cycle repeats."""
+        from ..explore.check import counterexample_steps
+        from .onrobot import replay_robot_path
+        from .report import draw_robot
+        v = res.verdicts[prop]
+        records = counterexample_steps(res.graph, v, res)
+        header = {"robot": {"seed": self.seed, "on": list(self.on)}}
+        rp = replay_robot_path(res.roar[0], self.tree.registry, self.scenario, header, records)
+        node = self.explorer.states[v.counterexample.final_state].node
+        x, y, _th = rp.pose
+        if prop == "robot-invariant" and node.bad:
+            _i, _why, t, pose = node.bad[0]
+            marks = [(pose[0], pose[1], f"violated at t = {t:.2f} s")]
+        else:
+            marks = [(x, y, "the cycle repeats here" if v.counterexample.cycle else "the path ends here")]
+        draw_robot(path, rp.robot, title=f"{self.scenario.name}: {prop} counterexample on the robot "
+                   f"(t = {rp.time:.1f} s)", marks=marks)
 
     def describe(self) -> str:
         faults = ", ".join(f"{n} at {'any call' if at is None else ' or '.join(sorted(at))}"
@@ -155,13 +176,18 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
     conditions = _conditions(job, scenario) if "robot-invariant" in job.props.check else []
     program, start, options, pairs = roar_setup(job, model)
     props = job.props
-    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check else None
+    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \
+        else None
     abstraction = setup.quantise or Abstraction()
     choices = FaultChoices(dict(setup.faults))
     tree = RobotTree(model, binding.robot, scenario, setup.seed, setup.on, abstraction, conditions)
     system = RobotSystem(model, start, tree, choices, options, pairs)
     explorer = Explorer(system, job.search, on_progress)
     states = explorer.states
+    spec_checks = spec_properties(job, model)   # properties in the spec's terms (roar/props.py)
+
+    def ctx_of(sid: int):
+        return states[sid].ctx
 
     def decide(graph) -> dict[str, Verdict]:
         verdicts: dict[str, Verdict] = {}
@@ -169,15 +195,17 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
             if p == "deadlock":
                 verdicts[p] = check_deadlock(graph, lambda sid: system.final(states[sid]))
             elif p == "livelock":
-                verdicts[p] = check_livelock(graph)
+                verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of)
+                                             if spec_checks.progress else graph)
+            elif p == "invariant" or p in spec_checks.handles:
+                verdicts[p] = spec_checks.decide(p, graph, ctx_of, (lambda sid: never(states[sid].ctx))
+                                                 if never is not None else None)
             elif p == "sequential-achievement":
                 def bad(sid):
                     pair = system.violates_sequence(states[sid].ctx)
                     return (f"in {pair.where}, a command of the subtree of '{pair.b_text}' started before every "
                             f"command of the subtree of '{pair.a_text}' ended") if pair else None
                 verdicts[p] = check_states(graph, p, bad)
-            elif p == "invariant":
-                verdicts[p] = check_states(graph, p, lambda sid: never(states[sid].ctx))
             elif p == "exclusive-writes":
                 def bad(sid):
                     w = system.shared_write(states[sid].ctx)
@@ -186,6 +214,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
                 verdicts[p] = check_states(graph, p, bad)
             elif p == "robot-invariant":
                 verdicts[p] = check_states(graph, p, lambda sid: _robot_bad(states[sid].node))
+        mark_defaults(props, verdicts)
         return verdicts
 
     graph, verdicts = _rounds(job, t0, explorer, decide)

@@ -43,6 +43,13 @@ def write_atomic(path: str | Path, text: str) -> None:
     _write_atomic(Path(path), text.encode("utf-8"))
 
 
+def _umask() -> int:
+    """The process's umask (read by setting it and putting it back: there is no getter)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def _write_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder.
 
@@ -54,6 +61,11 @@ def _write_atomic(path: Path, data: bytes) -> None:
     remove_stale_temporaries(path.parent)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_HOST}.{os.getpid()}-", suffix=".tmp", dir=path.parent)
     try:
+        # mkstemp makes the file private (0600); an output gets the mode a plain open would give it
+        mode = 0o666 & ~_umask()
+        if path.exists():
+            mode = path.stat().st_mode & 0o7777   # replacing a file keeps its mode
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
@@ -114,6 +126,8 @@ def write_trace(path: str | Path, header: dict, steps: Iterable[dict]) -> None:
 def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
     """Read a trace; malformed lines are errors with their line number."""
     path = Path(path)
+    from ..inputs import check_input_file
+    check_input_file(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -127,6 +141,10 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
             rec = json.loads(line)
         except json.JSONDecodeError as exc:
             raise RoarError(f"not a JSON object: {exc.msg}", Pos(str(path), n, exc.colno)) from None
+        except RecursionError:
+            raise RoarError("not a JSON object: nested too deeply", Pos(str(path), n, 1)) from None
+        except ValueError as exc:   # e.g. an integer beyond Python's int-string limit
+            raise RoarError(f"not a JSON object: {exc}", Pos(str(path), n, 1)) from None
         if not isinstance(rec, dict):
             raise RoarError("expected a JSON object on each line", Pos(str(path), n, 1))
         if header is None:

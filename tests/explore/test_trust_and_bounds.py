@@ -341,3 +341,23 @@ def test_check_leaves_no_temporary_files(tmp_path):
     with pytest.raises(SystemExit):
         main(["check", str(ROOT / "checker" / "philosophers_dl5.toml"), "--traces", str(tmp_path)])
     assert [p.name for p in tmp_path.iterdir()] == ["philosophers-dl-5.deadlock.jsonl"]
+
+
+def test_atomic_outputs_get_the_mode_a_plain_write_gives(tmp_path):
+    """mkstemp makes private files; an output is readable as any file the user writes (umask), and a
+    replaced file keeps its own mode."""
+    import os
+    import stat
+    from roar_formal.trace.format import write_atomic, write_atomic_bytes
+    old = os.umask(0o022)
+    try:
+        write_atomic(tmp_path / "a.jsonl", "x\n")
+        write_atomic_bytes(tmp_path / "b.png", b"x")
+        assert stat.S_IMODE((tmp_path / "a.jsonl").stat().st_mode) == 0o644
+        assert stat.S_IMODE((tmp_path / "b.png").stat().st_mode) == 0o644
+        os.chmod(tmp_path / "a.jsonl", 0o600)
+        write_atomic(tmp_path / "a.jsonl", "y\n")
+        assert stat.S_IMODE((tmp_path / "a.jsonl").stat().st_mode) == 0o600
+        assert (tmp_path / "a.jsonl").read_text() == "y\n"
+    finally:
+        os.umask(old)

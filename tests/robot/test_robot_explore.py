@@ -173,6 +173,13 @@ def test_robot_invariant_violated_on_the_wall_and_holds_in_the_fixed_twin():
     assert touched
 
 
+def test_check_png_draws_the_trajectory_with_the_violation_marked(roar_cli, tmp_path):
+    code, out, err = roar_cli("check", DATA / "bump_wall.job.toml", "--png", tmp_path, "--no-traces")
+    assert code == 0, out + err
+    pic = tmp_path / "bump_wall.robot-invariant.robot.png"
+    assert pic.stat().st_size > 5000 and f"picture: {pic}" in out
+
+
 def test_robot_invariant_errors_are_located(tmp_path):
     props = tmp_path / "p.toml"
     props.write_text('[robot-invariant]\nnever = ["contact &&"]\n')
