@@ -7,6 +7,7 @@ wires them together and turns user errors into located messages (no traceback).
 
 from __future__ import annotations
 
+import errno
 import os
 import signal
 import sys
@@ -17,7 +18,8 @@ from rich.markup import escape
 from .console import make_console
 from .errors import RoarError
 
-app = typer.Typer(
+# the Typer application; ``cli.app`` (module ``__getattr__`` below) is it with every command registered
+_app = typer.Typer(
     name="roar-verify",
     help="Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration.",
     no_args_is_help=True,
@@ -39,7 +41,7 @@ def _version(value: bool) -> None:
         raise typer.Exit(0)
 
 
-@app.callback()
+@_app.callback()
 def _root(
     show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
                                       help="Print the version and exit."),
@@ -47,35 +49,74 @@ def _root(
     """Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration."""
 
 
+_PARTS = ("clf", "roar", "robot", "explore", "tca")  # the order commands are listed in
+_registered: list[str] = []
+
+
+def _register(parts=_PARTS) -> None:
+    """Import the commands of the given parts (each only once); start-up imports only what
+    the command being run needs (``roar-verify clf`` never loads the explorer or the robot)."""
+    import importlib
+
+    for part in _PARTS:
+        if part in parts and part not in _registered:
+            _registered.append(part)
+            importlib.import_module(f".{part}.commands", __package__).register(_app)
+
+
 def _register_all() -> None:
-    from .clf import commands as clf_commands
-    from .explore import commands as explore_commands
-    from .roar import commands as roar_commands
-    from .robot import commands as robot_commands
-    from .tca import commands as tca_commands
-
-    for module in (clf_commands, roar_commands, robot_commands, explore_commands, tca_commands):
-        module.register(app)
+    _register(_PARTS)
 
 
-_register_all()
+def _register_for(args: list[str]) -> None:
+    first = next((a for a in args if not a.startswith("-")), None)
+    if first == "clf" and "--help" not in args and "-h" not in args:
+        _register(("clf",))
+    else:
+        _register_all()
+
+
+def __getattr__(name: str):
+    # `cli.app` seen from outside has every command (tests list them)
+    if name == "app":
+        _register_all()
+        return _app
+    raise AttributeError(name)
 
 
 def main(argv: list[str] | None = None) -> None:
     """Entry point: run the app; user errors print ``file:line:col: message`` and exit 2."""
     _exit_cleanly_on_sigterm()
+    args = list(sys.argv[1:] if argv is None else argv)
     try:
-        app(args=argv, standalone_mode=True)
+        if args[:1] == ["clf"]:  # the CLF command without Typer's start-up, when its options allow
+            from .clf.commands import fast_args, run_clf
+            opts = fast_args(args[1:])
+            if opts is not None:
+                run_clf(**opts)
+                sys.exit(0)
+        _register_for(args)
+        _app(args=argv, standalone_mode=True)
     except RoarError as exc:
         err_console.print(f"[bold red]error:[/] {escape(exc.format())}", markup=True, soft_wrap=True)
         sys.exit(2)
     except Exception as exc:  # a bug of ours, not the user's: short message, traceback on request
+        if isinstance(exc, OSError) and exc.filename is not None and exc.errno in _PATH_ERRNOS:
+            # a path the user gave that the system refuses (too long, a loop of links, no permission,
+            # read-only, full disk) wherever a reader or writer met it: bad input, not a bug
+            err_console.print(f"[bold red]error:[/] {escape(str(exc.filename))}: {escape(exc.strerror or str(exc))}",
+                              markup=True, soft_wrap=True)
+            sys.exit(2)
         if os.environ.get("ROAR_DEBUG"):
             raise
         err_console.print(f"[bold red]internal error:[/] {escape(type(exc).__name__)}: {escape(str(exc))}\n"
                           "This is a bug in roar-formal; rerun with ROAR_DEBUG=1 to see the traceback.",
                           markup=True, soft_wrap=True)
         sys.exit(3)
+
+
+_PATH_ERRNOS = {errno.ENAMETOOLONG, errno.ELOOP, errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC,
+                errno.EDQUOT, errno.ENOTDIR, errno.EISDIR, errno.ENOENT, errno.EEXIST}
 
 
 def _exit_cleanly_on_sigterm() -> None:

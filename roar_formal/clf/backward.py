@@ -23,7 +23,7 @@ from .builtins import BUILTINS, BuiltinError, evaluate, input_values
 from .context import Context
 from .forward import Run, inst, load_positive, match
 from .rules import AFF, LIN, PERS, positive_parts
-from .terms import (NUMBER, Aff, Bang, Const, EVar, Imp, Lam, Lit, Meta, Monad, Node, Param, Pi, Root, Top, With, deref,
+from .terms import (TypeNode, NUMBER, Aff, Bang, Const, EVar, Imp, Lam, Lit, Meta, Monad, Node, Param, Pi, Root, Top, With, deref,
                     num_term, param_term, string_term, subst, subst1, zonk)
 from .unify import Unifier
 
@@ -422,6 +422,20 @@ def _fits(skel: tuple, args: tuple) -> bool:
     return True
 
 
+def premise_atoms(ty: Node) -> set:
+    """Families of the atomic types a clause mentions (its premises, at any depth)."""
+    out: set = set()
+    stack = [ty]
+    while stack:
+        t = stack.pop()
+        if type(t) is Root:
+            if isinstance(t.head, Const):
+                out.add(t.head)
+        elif isinstance(t, TypeNode):
+            stack.extend(v for v in (getattr(t, f) for f in type(t).fields) if isinstance(v, Node))
+    return out
+
+
 def head_families(ty: Node) -> set:
     """Families a hypothesis can conclude (both halves of an ``&``)."""
     out: set = set()
@@ -459,9 +473,19 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
         slots = p.__dict__.get("_slots")
         if slots is None:
             slots = p._slots = _slots_of(pat)
-        bag = ctx.index.get(pat.head)
         pers = ctx.pers
-        key = (p, tuple([b[i] for i in slots]), tuple([t for t in bag.items if t in pers]) if bag else ())
+        fams = bw.program.premise_families(pat.head)
+        if len(fams) == 1:
+            bag = ctx.index.get(pat.head)
+            facts = tuple([t for t in bag.items if t in pers]) if bag else ()
+        else:
+            facts = []
+            for f in fams:
+                bag = ctx.index.get(f)
+                if bag:
+                    facts.extend([t for t in bag.items if t in pers])
+            facts = tuple(facts)
+        key = (p, tuple([b[i] for i in slots]), facts)
         hit = memo.get(key)
         if hit is not None:
             found, used_ids = hit
@@ -484,11 +508,14 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
     fam = goal.head if type(goal) is Root else None
     added = []
     if fam is not None:
-        bag = ctx.index.get(fam)
-        if bag:
-            for t in bag.items:
-                if t in ctx.pers:
-                    added.append(Hyp(t, PERS))
+        # the persistent facts a proof of the premise may use: those of its family and of
+        # every family its clauses' premises may need (decided once per program)
+        for f in bw.program.premise_families(fam):
+            bag = ctx.index.get(f)
+            if bag:
+                for t in bag.items:
+                    if t in ctx.pers:
+                        added.append(Hyp(t, PERS))
     found = None
     names, runs = bw._names, len(bw.monad_runs)
     first_id = _next_param_id() if memo is not None else None

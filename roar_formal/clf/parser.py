@@ -374,14 +374,14 @@ class _CelfLexer(Lexer):
 def _parser() -> Lark:
     """Build the LALR parser once (grammar analysis is the expensive part)."""
     grammar = resources.files(__package__).joinpath("celf.lark").read_text(encoding="utf-8")
-    return Lark(
-        grammar,
-        parser="lalr",
-        lexer=_CelfLexer,
-        start=["program", "lone_expr"],
-        transformer=_Build(),
-        maybe_placeholders=False,
-    )
+    options = dict(parser="lalr", lexer=_CelfLexer, start=["program", "lone_expr"], transformer=_Build(),
+                   maybe_placeholders=False)
+    try:
+        # lark keeps the analysed grammar in a cache file (keyed by the grammar's text), which
+        # saves most of the start-up of `roar-verify clf` on a small program
+        return Lark(grammar, cache=True, **options)
+    except Exception:  # pragma: no cover - an unwritable or stale cache: analyse afresh
+        return Lark(grammar, **options)
 
 
 def _run(text: str, file: str, start: str):
@@ -408,6 +408,8 @@ def parse_expr(text: str, file: str = "<input>") -> s.Expr:
 def parse_file(path: Union[str, PathLike]) -> s.Program:
     """Read a UTF-8 file and parse it; unreadable files are user errors, not crashes."""
     name = str(path)
+    from ..inputs import check_input_file
+    check_input_file(path)
     try:
         with open(path, encoding="utf-8-sig") as f:
             text = f.read()
@@ -616,17 +618,6 @@ def _bad_characters(text: str, pos: int) -> str:
     shown = repr(ch) if not ch.isprintable() or ch in "'\\" else f"'{ch}'"
     return (f"illegal character {shown}; an identifier is a run of letters, digits and the characters "
             f"- < > = / | _ ' * # + & ~ ; $ ?")
-
-
-_NUMBER_START = re.compile(r"-?[0-9]")
-_NUMBER_WORD = re.compile(r"-?[0-9][0-9A-Za-z_'.]*")
-
-
-def _bad_number(text: str, start: int) -> str:
-    word = _NUMBER_WORD.match(text, start)
-    shown = word.group(0).rstrip(".") if word else text[start:start + 1]
-    return (f"malformed number literal '{shown}'; a number is written as digits with an optional "
-            f"'-' and at most one '.' followed by digits (5, -1, 2.5)")
 
 
 def _bad_string(rest: str) -> str:

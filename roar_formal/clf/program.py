@@ -72,6 +72,26 @@ class Program:
             p = self._prefixes[prefix] = Program(self.sig, prefix)
         return p
 
+    def premise_families(self, fam) -> tuple:
+        """``fam`` and every family a proof of a ``fam`` goal may need a fact of: the premises of
+        its clauses, transitively (so a backward-proved premise of a forward rule sees the
+        persistent facts of those families in the context). Cached; ``fam`` first."""
+        cache = self.__dict__.setdefault("_premise_fams", {})
+        out = cache.get(fam)
+        if out is None:
+            from .backward import premise_atoms
+            seen = [fam]
+            todo = [fam]
+            while todo:
+                f = todo.pop()
+                for _name, ty in self.clauses.get(f, ()):
+                    for g in sorted(premise_atoms(ty), key=lambda c: c.name):
+                        if g not in seen:
+                            seen.append(g)
+                            todo.append(g)
+            out = cache[fam] = tuple(seen)
+        return out
+
     def indexed_clauses(self, fam) -> list:
         """The clauses of ``fam`` with their head skeletons (backward.clause_skeleton), cached."""
         cache = self.__dict__.setdefault("_indexed", {})

@@ -173,6 +173,7 @@ def run_file(path, seed: int = 0, emit: Callable[[str], None] = print, trace: bo
     parsed = parse_file(str(path))
     out = []
     program = None
+    sig = None
     for sig, d in elaborate_steps(parsed, strict=strict):
         if d is None:
             continue
@@ -182,6 +183,8 @@ def run_file(path, seed: int = 0, emit: Callable[[str], None] = print, trace: bo
             out.append(run_query(program, d, seed, emit, fair, proofs))
         else:
             out.append(run_exec(program, d, seed, emit, trace, fair))
+    if sig is not None and (program is None or program._size != len(sig.consts)):
+        Program(sig)  # the rules after the last directive are compiled too (and refused if they must be)
     return out
 
 

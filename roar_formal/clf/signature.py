@@ -135,6 +135,7 @@ class Elaborator:
             cls = self.neg(d.classifier)
         definition = None
         if d.definition is not None:
+            _refuse_proof_terms(d.definition)
             if is_family:
                 if not isinstance(d.classifier, S.TypeKw):
                     raise UnsupportedError("type abbreviations with arguments are not supported", d.pos)
@@ -511,6 +512,8 @@ class Elaborator:
             raise TypeError_("cannot infer the type of this lambda here; annotate it as (\\x. M : A -> B)", e.pos)
         if isinstance(e, (S.Pair, S.Proj)):
             raise UnsupportedError(f"{_describe(e)} as an index term is not supported", e.pos)
+        if isinstance(e, (S.Let, S.Tuple, S.PatLam)):
+            raise UnsupportedError(f"monadic proof terms as input are not supported ({_describe(e)})", e.pos)
         raise TypeError_(f"expected a term, found {_describe(e)}", e.pos)
 
     def _lam_annotation(self, e: S.Lam) -> Node:
@@ -570,6 +573,23 @@ class Elaborator:
         return term
 
 
+def _refuse_proof_terms(e: S.Expr) -> None:
+    """Monadic proof terms are read but not checked: refuse them where they occur."""
+    stack = [e]
+    while stack:
+        x = stack.pop()
+        if isinstance(x, (S.Monad, S.Let, S.Tuple, S.PatLam)):
+            what = {S.Monad: "a monadic object '{...}'", S.Let: "'let {p} = M in E'",
+                    S.Tuple: "a tuple '[M, N]'", S.PatLam: "a lambda with a pattern"}[type(x)]
+            raise UnsupportedError(f"monadic proof terms as input are not supported ({what} in a definition)",
+                                   x.pos)
+        for v in vars(x).values():
+            if isinstance(v, S.Node):
+                stack.append(v)
+            elif isinstance(v, tuple):
+                stack.extend(i for i in v if isinstance(i, S.Node))
+
+
 def _builtin_conclusion(ty: Node) -> Optional[Const]:
     """The built-in family a negative type concludes in (either half of an ``&``), if any."""
     stack = [ty]
@@ -623,6 +643,8 @@ def _describe(e: S.Expr) -> str:
         S.Proj: lambda e: "a projection", S.Annot: lambda e: "an annotation",
         S.Num: lambda e: f"the number literal '{e.text or e.value}'",
         S.Str: lambda e: "a string literal",
+        S.Let: lambda e: "'let {p} = M in E'", S.Tuple: lambda e: "a tuple '[M, N]'",
+        S.PatLam: lambda e: "a lambda with a pattern",
     }
     return names.get(type(e), lambda e: type(e).__name__)(e)
 

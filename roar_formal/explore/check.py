@@ -168,40 +168,50 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
     model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract")
     program, start, options, pairs = roar_setup(job, model)
     props = job.props
-    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check else None
+    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \
+        else None
+    spec_checks = spec_properties(job, model)
     reduction = "off"
     if job.reduction:
-        reduction = "on"
-        _reduction_options(options, props, never)
+        if spec_checks.in_use:
+            reduction = "not used with properties in the spec's terms"
+        else:
+            reduction = "on"
+            _reduction_options(options, props, never)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
                              "[deadlock] accept") if props.accept else roar_final
 
-    def decide(graph: StateGraph, states: list, system: RoarSystem) -> dict[str, Verdict]:
+    def decide(graph: StateGraph, states: list, system: RoarSystem, ctx_of, step_of) -> dict[str, Verdict]:
         verdicts: dict[str, Verdict] = {}
         for p in props.check:
             if p == "deadlock":
                 verdicts[p] = check_deadlock(graph, lambda sid: accept_ctx(states[sid]))
             elif p == "livelock":
-                verdicts[p] = check_livelock(graph)
+                verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of, step_of)
+                                             if spec_checks.progress else graph)
+            elif p == "invariant" or p in spec_checks.handles:
+                verdicts[p] = spec_checks.decide(p, graph, ctx_of,
+                                                 (lambda sid: never(states[sid])) if never is not None else None,
+                                                 step_of)
             elif p == "sequential-achievement":
                 def bad(sid):
                     pair = system.violates_sequence(states[sid])
                     return (f"in {pair.where}, a command of the subtree of '{pair.b_text}' started before every "
                             f"command of the subtree of '{pair.a_text}' ended") if pair else None
                 verdicts[p] = check_states(graph, p, bad)
-            elif p == "invariant":
-                verdicts[p] = check_states(graph, p, lambda sid: never(states[sid]))
             elif p == "exclusive-writes":
                 def bad(sid):
                     w = system.shared_write(states[sid])
                     return (f"{w[0]} is written by the where clauses of two live constraints: "
                             f"{' and '.join(w[1])}") if w else None
                 verdicts[p] = check_states(graph, p, bad)
+        mark_defaults(props, verdicts)
         return verdicts
 
     def explore(opts: Options):
         ex = Explorer(RoarSystem(model, start, opts, pairs), job.search, on_progress)
-        return ex, lambda g: decide(g, ex.states, ex.system)
+        ctx_of = ex.states.__getitem__   # one per explorer: the decoded states are cached on it
+        return ex, lambda g: decide(g, ex.states, ex.system, ctx_of, ex.steps.__getitem__)
 
     explorer, graph, verdicts = _search(job, t0, explore, options)
     _mark_reduction(job, verdicts, reduction)
@@ -211,6 +221,20 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
                     reduction, fingerprint)
     res.roar = (model, start, explorer)
     return res
+
+
+def spec_properties(job: Job, model):
+    """The job's properties in the spec's terms, bound to its compiled model (roar/props.py)."""
+    from ..roar.props import SpecChecks
+    return SpecChecks(job.props, model)
+
+
+def mark_defaults(props, verdicts: dict) -> None:
+    """Say which properties a job checked by default (a job on a spec that names none)."""
+    if getattr(props, "defaulted", False):
+        for v in verdicts.values():
+            if "(a default property)" not in v.message:
+                v.message += " (a default property)"
 
 
 def roar_setup(job: Job, model) -> tuple:

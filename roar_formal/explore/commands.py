@@ -44,6 +44,8 @@ def register(app: typer.Typer) -> None:
                                            "each counterexample."),
         dot: Optional[Path] = typer.Option(None, "--dot", help="Folder for the explored state graph (DOT) of each "
                                            "counterexample's job, its path highlighted (small models only)."),
+        html: Optional[Path] = typer.Option(None, "--html", help="Folder for an HTML report (index.html): the "
+                                            "summary, each verdict and counterexample, its chart and its trace."),
     ) -> None:
         """Run verification jobs; exit 0 only when every verdict is the expected one.
 
@@ -66,7 +68,10 @@ def register(app: typer.Typer) -> None:
         if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
             raise RoarError(f"--max-seconds {max_seconds}: expected a positive, finite number of seconds")
         from .pictures import check_output_folder, write_pictures
-        for folder, opt in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
+        outputs = [(png, "--png"), (svg, "--svg"), (dot, "--dot"), (html, "--html")]
+        if not no_traces and traces != Path("roar-traces"):   # the default is checked when written
+            outputs.append((traces, "--traces"))
+        for folder, opt in outputs:
             if folder is not None:   # checked before any work starts
                 check_output_folder(folder, opt, list(paths))
         files = find_jobs([p for p in paths if not is_model_path(p)]) if len(models) < len(paths) else []
@@ -109,12 +114,20 @@ def register(app: typer.Typer) -> None:
             if not no_traces:
                 for p, v in res.verdicts.items():
                     if v.counterexample is not None:
-                        saved[p] = save_counterexample(res, p, traces)
+                        try:
+                            saved[p] = save_counterexample(res, p, traces)
+                        except OSError as exc:
+                            raise RoarError(f"--traces {traces}: cannot write: {exc.strerror or exc}") from None
             res.saved = saved
             res.pictures = write_pictures(res, png, svg, dot, tuple(paths) + tuple(files)) \
                 if (png or svg or dot) else {}
             if not as_json:
                 _print_result(console, res, verbose)
+        if html is not None:
+            from .html import write_html_report
+            page = write_html_report(html, results, [_json(r) for r in results], tuple(paths) + tuple(files))
+            if not as_json:
+                console.print(f"HTML report: {page}", soft_wrap=True)
         if as_json:
             print(json.dumps([_json(r) for r in results], indent=2))
         else:

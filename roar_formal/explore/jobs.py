@@ -20,9 +20,12 @@ from typing import Any, Optional
 from ..errors import Pos, RoarError
 from .search import Budget
 
-PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant")
+PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant",
+              "mission-completion", "mission-failure")
 #: properties that read ROAR events or state: only for jobs on a spec
-ROAR_PROPERTIES = ("sequential-achievement", "exclusive-writes")
+ROAR_PROPERTIES = ("sequential-achievement", "exclusive-writes", "mission-completion", "mission-failure")
+#: what a job on a spec checks when nothing names a property (docs/checking.md)
+SPEC_DEFAULTS = ["deadlock", "mission-completion", "mission-failure"]
 STATUSES = ("holds", "violated")
 
 
@@ -40,6 +43,17 @@ class PropertySpec:
     sequence_recipes: list[str] = field(default_factory=list)   # agent.task.recipe; empty: every recipe
     robot_never: list[tuple[str, Pos]] = field(default_factory=list)    # robot-invariant: conditions never true
     robot_always: list[tuple[str, Pos]] = field(default_factory=list)   # robot-invariant: conditions always true
+    # in the spec's terms (roar/props.py Formula objects): jobs on a spec only
+    spec_never: list = field(default_factory=list)      # invariant: predicates no reachable state satisfies
+    spec_always: list = field(default_factory=list)     # invariant: predicates every reachable state satisfies
+    spec_progress: list = field(default_factory=list)   # livelock: a step into a state where one holds is progress
+    temporal: dict = field(default_factory=dict)        # [temporal] name -> Formula (always/eventually/leads-to)
+    defaulted: bool = False                             # nothing named a property: the spec defaults are checked
+
+    @property
+    def spec_terms(self) -> bool:
+        """Does any property read the spec's terms (predicates, temporal formulas)?"""
+        return bool(self.spec_never or self.spec_always or self.spec_progress or self.temporal)
 
 
 @dataclass
@@ -79,6 +93,8 @@ class Job:
 
 
 def _load_toml(path: Path) -> dict:
+    from ..inputs import check_input_file
+    check_input_file(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -93,6 +109,9 @@ def _load_toml(path: Path) -> dict:
         pos = Pos(str(path), int(m.group(1)), int(m.group(2))) if m else Pos(str(path), 1, 1)
         brief = re.sub(r" \(at line .*", "", msg)
         raise RoarError(f"invalid TOML: {brief}", pos) from None
+    except (RecursionError, ValueError) as exc:   # nested too deeply; a number past the int-string limit
+        from ..inputs import toml_limit_error
+        raise toml_limit_error(exc, text, str(path)) from None
 
 
 def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
@@ -164,8 +183,9 @@ def _bound(b: dict, key: str, path: Path, expected: str, low: float, integer: bo
 def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
     spec = into or PropertySpec()
     d = _load_toml(path)
+    from ..roar.props import looks_like_spec, parse_formula
     _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant",
-                     "robot-invariant"}, "a property file", path)
+                     "robot-invariant", "temporal"}, "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
@@ -177,7 +197,11 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
         ll = _typed(d, "livelock", dict, path, "a property file")
         _expect_keys(ll, {"progress", "fairness"}, "[livelock]", path)
         if "progress" in ll:
-            spec.progress += [str(x) for x in _typed(ll, "progress", list, path, "[livelock]")]
+            for x in _typed(ll, "progress", list, path, "[livelock]"):
+                if isinstance(x, str) and looks_like_spec(x):
+                    spec.spec_progress.append(parse_formula(x, _string_pos(path, "progress", x), temporal=False))
+                else:
+                    spec.progress.append(str(x))
         if "fairness" in ll:
             f = _typed(ll, "fairness", str, path, "[livelock]")
             if f not in ("first-argument", "rule", "none"):
@@ -196,14 +220,24 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                 spec.sequence_recipes.append(r)
     if "invariant" in d:
         inv = _typed(d, "invariant", dict, path, "a property file")
-        _expect_keys(inv, {"never"}, "[invariant]", path)
+        _expect_keys(inv, {"never", "always"}, "[invariant]", path)
         pats = _typed(inv, "never", list, path, "[invariant]") if "never" in inv else []
         for pat in pats:
             if not isinstance(pat, str) or not pat.strip():
-                raise RoarError("[invariant] never is a list of CLF patterns such as \"busy P * busy P\"",
-                                Pos(str(path), _line_of(path, "never"), 1))
-            spec.never.append((pat, Pos(str(path), _line_of(path, "never"), 1)))
-        if pats and "invariant" not in spec.check:
+                raise RoarError("[invariant] never is a list of predicates in the spec's terms such as "
+                                "\"arm::holding == true && gripper::closed == false\" (jobs on a spec) or of CLF "
+                                "patterns such as \"busy P * busy P\"", Pos(str(path), _line_of(path, "never"), 1))
+            if looks_like_spec(pat):
+                spec.spec_never.append(parse_formula(pat, _string_pos(path, "never", pat), temporal=False))
+            else:
+                spec.never.append((pat, Pos(str(path), _line_of(path, "never"), 1)))
+        alw = _typed(inv, "always", list, path, "[invariant]") if "always" in inv else []
+        for pat in alw:
+            if not isinstance(pat, str) or not pat.strip():
+                raise RoarError("[invariant] always is a list of predicates in the spec's terms such as "
+                                "\"ptu::heading != 0\"", Pos(str(path), _line_of(path, "always"), 1))
+            spec.spec_always.append(parse_formula(pat, _string_pos(path, "always", pat), temporal=False))
+        if (pats or alw) and "invariant" not in spec.check:
             spec.check.append("invariant")
     if "robot-invariant" in d:
         ri = _typed(d, "robot-invariant", dict, path, "a property file")
@@ -217,6 +251,19 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                 into.append((text, _string_pos(path, key, text)))
         if (spec.robot_never or spec.robot_always) and "robot-invariant" not in spec.check:
             spec.check.append("robot-invariant")
+    if "temporal" in d:
+        tm = _typed(d, "temporal", dict, path, "a property file")
+        for name, text in tm.items():
+            where = Pos(str(path), _line_of(path, name), 1)
+            if name in PROPERTIES or not re.fullmatch(r"[a-z][a-z0-9-]*", name):
+                raise RoarError(f"[temporal] '{name}': a property is named with lower-case letters, digits and '-', "
+                                f"and not like a built-in property ({', '.join(PROPERTIES)})", where)
+            if not isinstance(text, str) or not text.strip():
+                raise RoarError(f"[temporal] {name} is a formula such as \"always P\", \"eventually P\" or "
+                                f"\"P leads-to Q\" (docs/checking.md)", where)
+            spec.temporal[name] = parse_formula(text, _string_pos(path, name, text))
+            if name not in spec.check:
+                spec.check.append(name)
     if "deadlock" in d:
         dl = _typed(d, "deadlock", dict, path, "a property file")
         _expect_keys(dl, {"accept"}, "[deadlock]", path)
@@ -347,6 +394,9 @@ def load_job(path: str | Path) -> Job:
     if not isinstance(props, list):
         raise RoarError("'properties' must be a path or a list of paths", Pos(str(path), _line_of(path, "properties"), 1))
     for p in props:
+        if not isinstance(p, str):
+            raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
+                            Pos(str(path), _line_of(path, "properties"), 1))
         load_properties((base / p).resolve(), job.props)
     for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs"))):
         if key in d:
@@ -370,7 +420,7 @@ def load_job(path: str | Path) -> Job:
         )
     if "expect" in d:
         e = _typed(d, "expect", dict, path, "a job file")
-        _expect_keys(e, set(PROPERTIES), "[expect]", path)
+        _expect_keys(e, set(PROPERTIES) | set(job.props.temporal), "[expect]", path)
         for k, v in e.items():
             if v not in STATUSES:
                 raise RoarError(f"expected verdict of '{k}' must be 'holds' or 'violated', not {v!r}",
@@ -378,6 +428,15 @@ def load_job(path: str | Path) -> Job:
             job.expect[k] = v
             if k not in job.props.check:
                 job.props.check.append(k)
+    if job.is_roar and not job.props.check:   # nothing names a property: the defaults of a spec
+        job.props.check = list(SPEC_DEFAULTS)
+        job.props.defaulted = True
+    if not job.is_roar and job.props.spec_terms:
+        f = (job.props.spec_never + job.props.spec_always + job.props.spec_progress +
+             list(job.props.temporal.values()))[0]
+        raise RoarError(f"property {f.text!r} is written in the spec's terms: it needs a job on a spec "
+                        "('spec = ...'); on a .clf model write CLF patterns ([invariant] never) and rule names "
+                        "([livelock] progress)", f.pos or Pos(str(path), 1, 1))
     if not job.is_roar:
         for p in job.props.check:
             if p in ROAR_PROPERTIES:
@@ -389,8 +448,9 @@ def load_job(path: str | Path) -> Job:
     if "robot-invariant" in job.props.check and not (job.props.robot_never or job.props.robot_always):
         raise RoarError("property 'robot-invariant' needs conditions: [robot-invariant] never = [\"...\"] or "
                         "always = [\"...\"] in a property file", Pos(str(path), 1, 1))
-    if "invariant" in job.props.check and not job.props.never:
-        raise RoarError("property 'invariant' needs patterns: [invariant] never = [\"...\"] in a property file",
+    if "invariant" in job.props.check and not (job.props.never or job.props.spec_never or job.props.spec_always):
+        raise RoarError("property 'invariant' needs patterns: [invariant] never = [\"...\"] in a property file "
+                        "(on a spec, predicates in the spec's terms: never = [\"...\"] or always = [\"...\"])",
                         Pos(str(path), 1, 1))
     if not job.props.check:
         raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
@@ -408,8 +468,8 @@ def is_model_path(p: Path) -> bool:
 
 def job_for_model(path: Path, request: Optional[str] = None, properties: Optional[list[str]] = None) -> Job:
     """A job without a job file: ``check MODEL.clf`` or ``check SPEC --request ...`` with the
-    default properties (deadlock; and livelock for a spec, where progress and fairness have
-    defaults) and no expectation (so any violation is an error)."""
+    default properties (deadlock; for a spec, deadlock, mission-completion and mission-failure)
+    and no expectation (so any violation is an error)."""
     path = Path(path)
     spec = path.suffix != ".clf"
     if spec and not request:
@@ -419,7 +479,7 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
         raise RoarError(f"{path}: --request is for a ROAR spec, not a .clf program")
     if not path.exists():
         raise RoarError(f"{path}: no such file or folder")
-    wanted = properties or (["deadlock", "livelock"] if spec else ["deadlock"])
+    wanted = properties or (list(SPEC_DEFAULTS) if spec else ["deadlock"])
     allowed = PROPERTIES if spec else tuple(p for p in PROPERTIES if p not in ROAR_PROPERTIES)
     for p in wanted:
         if p not in allowed:
@@ -438,7 +498,8 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
     if spec:
         job.spec = path.resolve()
         job.request = request
-    job.props = PropertySpec(check=list(dict.fromkeys(wanted)), sources=["command line"])
+    job.props = PropertySpec(check=list(dict.fromkeys(wanted)), sources=["command line"],
+                             defaulted=spec and not properties)
     return job
 
 

@@ -440,6 +440,8 @@ def parse_roar(text: str, file: str = "<input>", *, hyper_compat: bool = False) 
 
 def _read(path: Path, pos: Optional[Pos] = None, what: str = "read") -> str:
     name = str(path)
+    from ..inputs import check_input_file
+    check_input_file(path, pos)
     try:
         with open(path, encoding="utf-8-sig") as f:
             return f.read()

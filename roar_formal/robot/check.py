@@ -185,6 +185,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
     explorer = Explorer(system, job.search, on_progress)
     states = explorer.states
     spec_checks = spec_properties(job, model)   # properties in the spec's terms (roar/props.py)
+    spec_checks.cut = lambda sid: states[sid].node.at_horizon   # a run cut at the horizon has not ended
 
     def ctx_of(sid: int):
         return states[sid].ctx
@@ -195,11 +196,11 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
             if p == "deadlock":
                 verdicts[p] = check_deadlock(graph, lambda sid: system.final(states[sid]))
             elif p == "livelock":
-                verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of)
+                verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of, explorer.steps.__getitem__)
                                              if spec_checks.progress else graph)
             elif p == "invariant" or p in spec_checks.handles:
                 verdicts[p] = spec_checks.decide(p, graph, ctx_of, (lambda sid: never(states[sid].ctx))
-                                                 if never is not None else None)
+                                                 if never is not None else None, explorer.steps.__getitem__)
             elif p == "sequential-achievement":
                 def bad(sid):
                     pair = system.violates_sequence(states[sid].ctx)
@@ -260,9 +261,6 @@ def _robot_bad(node) -> Optional[str]:
     return node.bad[0][1] if node.bad else None
 
 
-ABSTRACT_PROPS = ("deadlock", "livelock", "sequential-achievement", "invariant", "exclusive-writes")
-
-
 def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
     """The abstract model's verdicts next to the robot's, and why they differ."""
     from ..explore.check import _run_roar_job
@@ -271,7 +269,7 @@ def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
     ajob.robot = None
     ajob.expect = {}
     ajob.props = copy.copy(job.props)
-    ajob.props.check = [p for p in job.props.check if p in ABSTRACT_PROPS]
+    ajob.props.check = [p for p in job.props.check if p != "robot-invariant"]   # all but the robot's own
     if not ajob.props.check:
         return
     budget = copy.copy(job.budget)

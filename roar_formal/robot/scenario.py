@@ -210,6 +210,8 @@ class Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Read and check a scenario file."""
     path = Path(path)
+    from ..inputs import check_input_file
+    check_input_file(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -232,6 +234,9 @@ def parse_scenario(text: str, filename: str = "<scenario>") -> Scenario:
             lines = text.splitlines() or [""]
             pos = Pos(filename, len(lines), len(lines[-1]) + 1)
         raise RoarError(f"invalid TOML: {re.sub(r' [(]at (line|end of document).*', '', msg)}", pos) from None
+    except (RecursionError, ValueError) as exc:   # nested too deeply; a number past the int-string limit
+        from ..inputs import toml_limit_error
+        raise toml_limit_error(exc, text, filename) from None
     where = _Locator(text, filename)
     return _read_scenario(_Table(data, (), "the scenario file", where), text, filename)
 

@@ -402,6 +402,8 @@ def read_task_tree(path) -> list[Event]:
     from ..trace.format import read_trace
     from .roar_runs import is_roar_trace, task_tree_events
     path = Path(path)
+    from ..inputs import check_input_file
+    check_input_file(path, Pos(str(path), 1, 1))
     try:
         with path.open(encoding="utf-8") as handle:
             first = handle.readline()
@@ -422,6 +424,6 @@ def check_trace(path) -> CheckReport:
     nothing was checked."""
     report = check_events(read_task_tree(path))
     if not report.tree.messages:
-        raise RoarError(f"the trace holds no task-tree message (no request, no primitive call, no "
-                        f"constraint_sent record): there is nothing to check", Pos(str(path), 1, 1))
+        raise RoarError("the trace holds no task-tree message (no request, no primitive call, no "
+                        "constraint_sent record): there is nothing to check", Pos(str(path), 1, 1))
     return report

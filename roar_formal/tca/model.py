@@ -20,6 +20,7 @@ Ambler's recursive Take Step).
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -120,6 +121,13 @@ def _table(data: dict, key: str, src: _Source, where: str) -> dict:
     return value
 
 
+def _list(data: dict, key: str, src: _Source, where: str) -> list:
+    value = data.get(key, [])
+    if not isinstance(value, list):
+        raise src.fail(f"expected {where}.{key} to be an array", f"{key} =", where)
+    return value
+
+
 def _text(data: dict, key: str, src: _Source, where: str, default: Optional[str] = None) -> str:
     value = data.get(key, default)
     if not isinstance(value, str) or not value:
@@ -131,9 +139,9 @@ def _durations(data: dict, src: _Source) -> dict[str, tuple[Fraction, Fraction]]
     out = {}
     for name, bounds in _table(data, "durations", src, "durations").items():
         ok = (isinstance(bounds, list) and len(bounds) == 2
-              and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds))
+              and all(isinstance(b, (int, float)) and not isinstance(b, bool) and math.isfinite(b) for b in bounds))
         if not ok:
-            raise src.fail(f"expected durations.{name} = [lo, hi] (two numbers)", f"{name} =")
+            raise src.fail(f"expected durations.{name} = [lo, hi] (two finite numbers)", f"{name} =")
         lo, hi = (Fraction(str(b)) for b in bounds)
         if not 0 < lo <= hi:
             raise src.fail(f"expected 0 < lo <= hi in durations.{name}, got [{lo}, {hi}]", f"{name} =")
@@ -187,11 +195,11 @@ def _class(name: str, raw: Any, src: _Source, sizes: dict[str, int], durations: 
     work = _text(raw, "work", src, where)
     if work not in durations:
         raise src.fail(f"{where}.work = {work!r} is not in [durations]", f'"{work}"')
-    slots = tuple(_slot(s, name, src, sizes) for s in raw.get("children", []))
+    slots = tuple(_slot(s, name, src, sizes) for s in _list(raw, "children", src, where))
     by_name = {s.name: s for s in slots}
     if len(by_name) != len(slots):
         raise src.fail(f"{where}: two children share a name", f"[{where}]")
-    constraints = tuple(_constraint(c, name, by_name, src) for c in raw.get("constraints", []))
+    constraints = tuple(_constraint(c, name, by_name, src) for c in _list(raw, "constraints", src, where))
     agent = raw.get("agent")
     return MessageClass(name, kind, work, agent if isinstance(agent, str) else None, slots, constraints)
 
@@ -245,6 +253,9 @@ def parse_model(text: str, file: str = "<model>") -> Model:
         m = re.search(r"at line (\d+), column (\d+)", str(exc))
         pos = Pos(file, int(m.group(1)), int(m.group(2))) if m else Pos(file, 1, 1)
         raise RoarError(f"malformed TOML: {str(exc).split(' (at line')[0]}", pos) from None
+    except (RecursionError, ValueError) as exc:   # nested too deeply; a number past the int-string limit
+        from ..inputs import toml_limit_error
+        raise toml_limit_error(exc, text, file, "malformed TOML") from None
     head = _table(data, "model", src, "model")
     sizes = _table(data, "sizes", src, "sizes")
     for key, value in sizes.items():
@@ -253,7 +264,7 @@ def parse_model(text: str, file: str = "<model>") -> Model:
     durations = _durations(data, src)
     raw_classes = _table(data, "classes", src, "classes")
     classes = {n: _class(n, raw, src, sizes, durations) for n, raw in raw_classes.items()}
-    claims = tuple(_claim(c, classes, src) for c in data.get("claims", []))
+    claims = tuple(_claim(c, classes, src) for c in _list(data, "claims", src, "claims"))
     model = Model(_text(head, "name", src, "model"), _text(head, "root", src, "model"),
                   head.get("description", ""), dict(sizes), durations, classes, claims, file)
     _check_shape(model, src)
@@ -263,8 +274,14 @@ def parse_model(text: str, file: str = "<model>") -> Model:
 def load_model(path) -> Model:
     """Read and validate a model file."""
     path = Path(path)
+    from ..inputs import check_input_file
+    check_input_file(path, Pos(str(path), 1, 1))
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise RoarError(f"cannot read model: {exc.strerror}", Pos(str(path), 1, 1)) from None
+    except UnicodeDecodeError as exc:
+        line = exc.object[: exc.start].count(b"\n") + 1
+        col = exc.start - (exc.object.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise RoarError(f"model is not UTF-8 text: {exc.reason}", Pos(str(path), line, col)) from None
     return parse_model(text, str(path))

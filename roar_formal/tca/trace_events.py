@@ -89,7 +89,7 @@ class _Record:
                 raise self.fail(f"expected a string field {key!r} in a {self.data['event']!r} record")
             return None
         if not isinstance(value, str) or not value:
-            raise self.fail(f"expected field {key!r} to be a non-empty string, got {json.dumps(value)}", key)
+            raise self.fail(f"expected field {key!r} to be a non-empty string, got {json.dumps(value, default=float)[:200]}", key)
         return value
 
     def time(self, required: bool = True) -> Optional[Fraction]:
@@ -150,6 +150,8 @@ def _parse(text: str, file: str, line: int) -> Optional[dict]:
         raise RoarError(f"malformed JSON: {exc.msg}; expected one JSON object per line", Pos(file, line, exc.colno))
     except ValueError as exc:
         raise RoarError(f"malformed JSON: {exc}", Pos(file, line, 1))
+    except RecursionError:
+        raise RoarError("malformed JSON: nested too deeply", Pos(file, line, 1)) from None
     if not isinstance(data, dict):
         raise RoarError(f"expected a JSON object per line, got a {type(data).__name__}", Pos(file, line, 1))
     return data
@@ -188,6 +190,8 @@ def parse_events(lines: Iterable[str], file: str = "<trace>") -> list[Event]:
 def read_events(path: Union[str, Path]) -> list[Event]:
     """Read a JSON Lines trace file."""
     path = Path(path)
+    from ..inputs import check_input_file
+    check_input_file(path, Pos(str(path), 1, 1))
     try:
         with path.open(encoding="utf-8") as handle:
             return parse_events(handle, str(path))

@@ -132,7 +132,7 @@ def test_string_literals_parse(text, value):
 
 def test_operators_and_directive_bounds_still_lex():
     prog = parse_program("#query 1 2 * 3 p -o q.\n#exec 10 count 10.\n#trace * f -1 -o g 2.5 -@ h.\n"
-                         "#query 1 1 1 1 1.\nr : a->b-o c.\n#mode p + - .\n")
+                         "#query 1 1 1 1 1.\nr : a -> b -o c.\n#mode p + - .\n")
     q, e, t, one, r, m = prog.items
     assert (q.depth, q.expected, q.look, q.attempts) == (1, 2, "*", 3)
     assert isinstance(q.goal, S.Arrow) and q.goal.op == "-o"
@@ -145,9 +145,8 @@ def test_operators_and_directive_bounds_still_lex():
 
 
 @pytest.mark.parametrize("text,fragment,col", [
-    ("a : f 1.2.3.", "malformed number literal '1.2.3'", 7),
-    ("a : f 12ab.", "malformed number literal '12ab'", 7),
-    ("a : f 1x.", "malformed number literal '1x'", 7),
+    # `1.2` is a number, then the '.' ends the declaration and `3` cannot start another
+    ("a : f 1.2.3.", "unexpected number 3", 11),
     ('a : f "abc.', "unterminated string literal", 7),
     ('a : f "a\\qb".', "invalid escape '\\q'", 7),
 ])
@@ -156,6 +155,20 @@ def test_malformed_literals(text, fragment, col):
         parse_program(text)
     assert fragment in info.value.message
     assert (info.value.pos.line, info.value.pos.col) == (1, col)
+
+
+def test_identifiers_that_start_with_digits():
+    # Celf's lexer: a run of identifier characters is one identifier (`a->b-o`, `12ab`, `1x`),
+    # digits alone are a number and `-` then digits a (negative) number literal
+    (d,) = parse_program("r : a->b-o c 12ab 1x 1+ -1.").items
+    args = []
+    e = d.classifier
+    while isinstance(e, S.App):
+        args.append(e.arg)
+        e = e.fn
+    assert e == S.Id(None, "a->b-o")
+    assert [a.name for a in reversed(args[1:])] == ["c", "12ab", "1x", "1+"]
+    assert isinstance(args[0], S.Num) and args[0].value == -1
 
 
 def test_number_printing():
@@ -371,14 +384,14 @@ def test_string_builtins_match_python(s, t):
 
 ALL = list(TESTS) + list(BINARY) + list(UNARY)
 FORWARD_RULES = """
-in : number -> number -> type.
+inp : number -> number -> type.  % `in` is a keyword of Celf's
 yes : string -> type.
 out : string -> number -> type.
 """ + "\n".join(
     [f"tok_{n} : type." for n in ALL]
-    + [f"t_{n} : tok_{n} -o !in A B -o !{n} A B -o {{!yes \"{n}\"}}." for n in TESTS]
-    + [f"f_{n} : tok_{n} -o !in A B -o !{n} A B C -o {{!out \"{n}\" C}}." for n in BINARY]
-    + [f"u_{n} : tok_{n} -o !in A B -o !{n} A C -o {{!out \"{n}\" C}}." for n in UNARY])
+    + [f"t_{n} : tok_{n} -o !inp A B -o !{n} A B -o {{!yes \"{n}\"}}." for n in TESTS]
+    + [f"f_{n} : tok_{n} -o !inp A B -o !{n} A B C -o {{!out \"{n}\" C}}." for n in BINARY]
+    + [f"u_{n} : tok_{n} -o !inp A B -o !{n} A C -o {{!out \"{n}\" C}}." for n in UNARY])
 
 
 @settings(max_examples=40, **SETTINGS)
@@ -387,7 +400,7 @@ def test_number_builtins_in_forward_rules(x, y):
     (a_text, a), (b_text, b) = x, y
     # each rule consumes its own token, so it fires at most once; a rule whose built-in
     # fails leaves its token behind
-    start = " * ".join([f"!in {a_text} {b_text}"] + [f"tok_{n}" for n in ALL])
+    start = " * ".join([f"!inp {a_text} {b_text}"] + [f"tok_{n}" for n in ALL])
     _, res, _ = run(FORWARD_RULES + f"\n#exec * {start}.\n")
     ctx = res[0].final
     yes = {string_value(t.args[0]) for t in ctx.pers if t.head is Const("yes")}

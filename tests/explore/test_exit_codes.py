@@ -82,7 +82,8 @@ def test_a_spec_or_a_program_is_checked_without_a_job_file(capsys, monkeypatch):
     assert code == 1 and "deadlock: violated, and the job expects nothing of it" in out
     code, out, err = run_check(capsys, ROOT / "models" / "faulty" / "mutual_make_fixed.roar",
                                "-r", "arm::started == true")
-    assert code == 0 and "deadlock: holds" in out and "livelock: holds" in out
+    assert code == 0 and "deadlock: holds" in out and "mission-completion: holds" in out   # the spec defaults
+    assert "mission-failure: holds" in out and "(a default property)" in out and "livelock" not in out
     code, out, err = run_check(capsys, ROOT / "models" / "philosophers" / "dl.clf", "--property", "deadlock")
     assert code == 1 and "deadlock: violated" in out
     code, out, err = run_check(capsys, ROOT / "models" / "philosophers" / "ok.clf", "--max-states", "5")

@@ -1,0 +1,140 @@
+"""``roar-verify check --html DIR``: the report's files, its content, and the page in a real headless browser."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+JOB = ROOT / "checker" / "mutual_make.toml"
+CHROMIUM = "/usr/bin/chromium"
+CHROMEDRIVER = "/usr/bin/chromedriver"
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    """One run of ``check --html`` on checker/mutual_make.toml (a deadlock, as expected)."""
+    import contextlib
+
+    from roar_formal.cli import main
+    base = tmp_path_factory.mktemp("html")
+    out, err = io.StringIO(), io.StringIO()
+    env = {"NO_COLOR": "1", "COLUMNS": "200"}
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    code = 0
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                main(["check", str(JOB), "--html", str(base / "report"), "--traces", str(base / "traces")])
+            except SystemExit as exc:
+                code = exc.code
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    out, err = out.getvalue(), err.getvalue()
+    return code, out, err, base / "report", base / "traces"
+
+
+def test_the_report_folder_holds_the_page_the_chart_the_trace_and_the_json(report):
+    code, out, err, folder, traces = report
+    assert code == 0, err
+    assert f"HTML report: {folder / 'index.html'}" in out
+    page = (folder / "index.html").read_text(encoding="utf-8")
+    charts = sorted((folder / "charts").glob("*.svg"))
+    assert [c.name for c in charts] == ["0-mutual-make__faulty_.deadlock.svg"]
+    assert charts[0].read_bytes().lstrip().startswith((b"<?xml", b"<svg"))
+    # the trace is copied into the report and linked, byte for byte the one --traces saved
+    copied = folder / "traces" / "0-mutual-make__faulty_.deadlock.jsonl"
+    assert copied.read_bytes() == (traces / "mutual-make__faulty_.deadlock.jsonl").read_bytes()
+    assert 'href="traces/0-mutual-make__faulty_.deadlock.jsonl"' in page
+    assert 'src="charts/0-mutual-make__faulty_.deadlock.svg"' in page
+    # the counterexample in ROAR terms: the wait-for cycle, the per-agent final state, a variable change
+    assert "wait-for cycle: arm -&gt; door -&gt; arm" in page
+    assert "door waits for arm: open_door.swing waits for R2 (arm::parked == true)" in page
+    assert "parked = false, started = false" in page
+    assert "make R1 to door: door::open == true" in page
+    # report.json is what --json prints: the same verdicts and the same counterexample report
+    doc = json.loads((folder / "report.json").read_text(encoding="utf-8"))
+    assert doc[0]["job"] == "mutual-make (faulty)"
+    assert doc[0]["verdicts"]["deadlock"]["status"] == "violated"
+    assert doc[0]["verdicts"]["deadlock"]["counterexample"]["report"]["deadlock"]["cycle"] == ["arm", "door"]
+    assert doc[0]["verdicts"]["livelock"]["status"] == "holds"
+    # no temporary file of the atomic writer is left behind
+    assert not [p for p in folder.rglob(".*") if p.is_file()]
+
+
+def test_the_page_names_each_verdict_in_the_summary_and_in_its_section(report):
+    _, _, _, folder, _ = report
+    page = (folder / "index.html").read_text(encoding="utf-8")
+    summary = re.search(r'<table id="summary">.*?</table>', page, re.S).group(0)
+    assert "mutual-make (faulty)" in summary and 'class="violated">violated' in summary
+    assert 'class="holds">holds' in summary and "as expected" in summary
+    assert 'data-property="deadlock" data-status="violated"' in page
+    assert 'data-property="livelock" data-status="holds"' in page
+
+
+def test_an_html_folder_that_cannot_be_written_is_refused_before_any_work(roar_cli, tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    code, out, err = roar_cli("check", JOB, "--html", afile / "report", "--no-traces")
+    assert code == 2
+    assert f"--html {afile / 'report'}: {afile} is not a folder" in err
+    assert "states" not in out   # no job ran
+
+
+def _browser():
+    for tool in (CHROMIUM, CHROMEDRIVER):
+        if not (os.path.exists(tool) and os.access(tool, os.X_OK)):
+            pytest.fail(f"{tool} is missing: the HTML report is checked in a real headless browser; install it "
+                        "with `apt-get install -y chromium chromium-driver` (.ci/run does)")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = CHROMIUM
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=1280,1600",
+              "--allow-file-access-from-files"):
+        opts.add_argument(a)
+    return webdriver.Chrome(service=Service(CHROMEDRIVER), options=opts)
+
+
+def test_the_report_renders_in_a_headless_browser(report, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    _, _, _, folder, _ = report
+    shutil.copytree(folder, tmp_path / "site")   # a copy: the report moves as a whole (relative links)
+    driver = _browser()
+    try:
+        driver.get((tmp_path / "site" / "index.html").as_uri())
+        assert driver.title == "roar-verify check"
+        body = driver.find_element(By.TAG_NAME, "body").text
+        assert "mutual-make (faulty)" in body
+        assert "deadlock: violated" in body and "livelock: holds" in body
+        assert "wait-for cycle: arm -> door -> arm" in body
+        img = driver.find_element(By.CSS_SELECTOR, "img.chart")
+        width, height, complete = driver.execute_script(
+            "const i = arguments[0]; return [i.naturalWidth, i.naturalHeight, i.complete];", img)
+        assert complete and width > 100 and height > 100, (width, height)
+        assert img.size["width"] > 100 and img.size["height"] > 100
+        link = driver.find_element(By.CSS_SELECTOR, "a.trace")
+        assert link.get_attribute("href").endswith("/traces/0-mutual-make__faulty_.deadlock.jsonl")
+        shot = driver.get_screenshot_as_png()
+    finally:
+        driver.quit()
+    (tmp_path / "screenshot.png").write_bytes(shot)
+    import matplotlib.image as mpimg
+    import numpy as np
+    pixels = mpimg.imread(io.BytesIO(shot), format="png")[..., :3]
+    assert pixels.shape[0] > 500 and pixels.shape[1] > 500
+    not_white = (pixels < 0.95).any(axis=2).mean()
+    assert 0.01 < not_white < 0.9, not_white   # text, tables and the chart: neither blank nor one colour
+    assert np.unique(pixels.reshape(-1, 3), axis=0).shape[0] > 20   # many colours: a rendered page
