@@ -40,7 +40,8 @@ from roar_formal.clf.printer import show
 from roar_formal.clf.program import Program
 from roar_formal.clf.query import run_query
 
-SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+SETTINGS = dict(deadline=None, derandomize=True, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 # =====================================================================
 # Forward chaining: the plain model
