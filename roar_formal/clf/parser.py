@@ -395,13 +395,30 @@ def _run(text: str, file: str, start: str):
     raise err from None
 
 
+#: the longest run of digits read as a number (Python converts at most 4,300 digits)
+MAX_DIGITS = 4000
+_LONG_DIGITS = re.compile(r"[0-9]{%d,}" % (MAX_DIGITS + 1))
+
+
+def _check_digits(text: str, file: str) -> None:
+    """Refuse, at its place, a number too long to read (before the parser converts it)."""
+    m = _LONG_DIGITS.search(text)
+    if m:
+        line = text.count("\n", 0, m.start()) + 1
+        col = m.start() - (text.rfind("\n", 0, m.start()) + 1) + 1
+        raise SyntaxError_(f"a number of {len(m.group(0)):,} digits: at most {MAX_DIGITS:,} are read",
+                           Pos(file, line, col))
+
+
 def parse_program(text: str, file: str = "<input>") -> s.Program:
     """Parse a whole Celf file (declarations and directives)."""
+    _check_digits(text, file)
     return s.Program(file, _run(text, file, "program"))
 
 
 def parse_expr(text: str, file: str = "<input>") -> s.Expr:
     """Parse a single expression (no trailing '.')."""
+    _check_digits(text, file)
     return _run(text, file, "lone_expr")
 
 

@@ -448,3 +448,15 @@ def test_large_file_parses_every_item():
     prog = parse_program(text)
     assert len(prog.items) == 3750
     assert [type(i).__name__ for i in prog.items[:3]] == ["Decl", "Decl", "Query"]
+
+
+def test_a_number_too_long_to_read_is_a_located_parse_error():
+    """Python converts at most 4,300 digits; a longer number was an internal error (found by fuzzing)."""
+    import pytest as _pytest
+    from roar_formal.clf.parser import parse_program
+    from roar_formal.errors import RoarError as _RoarError
+    with _pytest.raises(_RoarError) as e:
+        parse_program("nat : type.\nn : nat = " + "9" * 5000 + ".\n", "big.clf")
+    assert (e.value.pos.file, e.value.pos.line, e.value.pos.col) == ("big.clf", 2, 11)
+    assert "5,000 digits" in e.value.message
+    assert parse_program("nat : type.\n#query * 1 * 1 nat.\n", "ok.clf") is not None
