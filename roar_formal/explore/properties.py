@@ -113,6 +113,29 @@ def _scc(n: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     return labels
 
 
+def fair_components(g: StateGraph, comp, base, cand_edges, src, grp):
+    """The weakly fair components among those holding ``cand_edges`` (edges inside a component):
+    every fairness group enabled in all of a component's ``base`` states must move on one of its
+    edges. Returns (member states, fair component ids, component of each candidate edge, the
+    groups always enabled per component). Vectorised over all components at once."""
+    n_groups = max(1, len(g.groups.names))
+    ci = comp[src[cand_edges]]
+    cand_comps = np.unique(ci)
+    is_cand = np.zeros(comp.max() + 1, dtype=bool)
+    is_cand[cand_comps] = True
+    member = base & is_cand[comp]
+    size = np.bincount(comp[member], minlength=len(is_cand))
+    pairs = g.enabled_pairs(n_groups)
+    pairs = pairs[member[pairs // n_groups]]
+    pc = comp[pairs // n_groups]
+    always = np.bincount(pc * n_groups + pairs % n_groups, minlength=len(is_cand) * n_groups)
+    always = always.reshape(len(is_cand), n_groups) == size[:, None]
+    moving = np.zeros((len(is_cand), n_groups), dtype=bool)
+    moving[ci, grp[cand_edges]] = True
+    starving = (always & ~moving).any(axis=1)
+    return member, cand_comps[~starving[cand_comps]], ci, always
+
+
 def check_livelock(g: StateGraph) -> Verdict:
     """A fair cycle without progress, as a lasso; none on a complete graph means none at all."""
     a = g.arrays()
@@ -132,22 +155,7 @@ def check_livelock(g: StateGraph) -> Verdict:
     # Per candidate component: groups enabled in every member state (by an outgoing edge,
     # progress or not, or by a step a reduced expansion left out) must all move inside it.
     # Vectorised over all components at once.
-    n_groups = max(1, len(g.groups.names))
-    cand_comps = np.unique(comp[isrc[internal]])
-    is_cand = np.zeros(comp.max() + 1, dtype=bool)
-    is_cand[cand_comps] = True
-    member = expanded & is_cand[comp]
-    size = np.bincount(comp[member], minlength=len(is_cand))
-    pairs = g.enabled_pairs(n_groups)
-    pairs = pairs[member[pairs // n_groups]]
-    pc = comp[pairs // n_groups]
-    always = np.bincount(pc * n_groups + pairs % n_groups, minlength=len(is_cand) * n_groups)
-    always = always.reshape(len(is_cand), n_groups) == size[:, None]
-    moving = np.zeros((len(is_cand), n_groups), dtype=bool)
-    ci = comp[src[cand_edges]]
-    moving[ci, grp[cand_edges]] = True
-    starving = (always & ~moving).any(axis=1)
-    fair = cand_comps[~starving[cand_comps]]
+    member, fair, ci, always = fair_components(g, comp, expanded, cand_edges, src, grp)
     best = None
     if len(fair):
         depth = np.asarray(g.depth, dtype=np.int64)

@@ -750,7 +750,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     minimises the path's length (to the seed by the BFS parent pointers, then inside the region).
     Only expanded states are used, so a violation found in a partial graph is real. ``cut`` marks
     states without successors that are not the end of a run (a robot-backed search's horizon)."""
-    from ..explore.properties import Counterexample, Verdict, _incomplete, _scc, _tour
+    from ..explore.properties import Counterexample, Verdict, _incomplete, _scc, _tour, fair_components
     n = g.n_states
     a = g.arrays()
     src, dst, grp = a["src"], a["dst"], a["group"]
@@ -798,22 +798,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
         internal = comp[isrc] == comp[idst]
         cand_edges = np.flatnonzero(inner)[internal]
         if len(cand_edges):
-            n_groups = max(1, len(g.groups.names))
-            cand_comps = np.unique(comp[src[cand_edges]])
-            is_cand = np.zeros(comp.max() + 1, dtype=bool)
-            is_cand[cand_comps] = True
-            member = expanded & region & is_cand[comp]
-            size = np.bincount(comp[member], minlength=len(is_cand))
-            pairs = g.enabled_pairs(n_groups)
-            pairs = pairs[member[pairs // n_groups]]
-            pc = comp[pairs // n_groups]
-            always = np.bincount(pc * n_groups + pairs % n_groups, minlength=len(is_cand) * n_groups)
-            always = always.reshape(len(is_cand), n_groups) == size[:, None]
-            moving = np.zeros((len(is_cand), n_groups), dtype=bool)
-            ci = comp[src[cand_edges]]
-            moving[ci, grp[cand_edges]] = True
-            starving = (always & ~moving).any(axis=1)
-            fair = cand_comps[~starving[cand_comps]]
+            member, fair, ci, always = fair_components(g, comp, expanded & region, cand_edges, src, grp)
             if len(fair):
                 fm = np.flatnonzero(member & np.isin(comp, fair))
                 entry = int(fm[np.argmin(dist[fm])])

@@ -216,9 +216,6 @@ class RobotNode:
     __slots__ = ("id", "parent", "event", "tick", "time", "pose", "key", "results", "children", "armed",
                  "at_horizon", "bad", "depth")
 
-    def describe_event(self) -> str:
-        return describe_event(self.event)
-
 
 def describe_event(event) -> str:
     kind = event[0]
@@ -614,7 +611,7 @@ class RobotSystem(RoarSystem):
         step = RobotStep("functional_layer" if parts else "robot_launch", consumed, produced, event, parts, shown)
         if self.pairs:
             self._monitor(state.ctx, nxt, step)
-        return Successor(_launch_label(event), ROBOT_GROUP, False, RobotState(nxt, node, handles), step)
+        return Successor(describe_event(event), ROBOT_GROUP, False, RobotState(nxt, node, handles), step)
 
     def _answer_call(self, nxt: Context, f, fc: str, res: CallResult, consumed, produced, parts) -> None:
         """Answer pending call ``f`` with ``res`` in ``nxt`` (one narratable part of the step)."""
@@ -693,6 +690,3 @@ def _compatible(scenario: Scenario, names) -> bool:
     doors = [scenario.faults[n].door for n in names if scenario.faults[n].kind == "door"]
     return len(doors) == len(set(doors))
 
-
-def _launch_label(event) -> str:
-    return describe_event(event)
