@@ -298,9 +298,8 @@ class Backward:
             if h.mode != PERS and i < floor:
                 continue
             ty = zonk(h.ty)
-            if ty.evars:
-                # a hypothesis mentioning unsolved logic variables cannot enter the monad
-                continue
+            # a hypothesis mentioning logic variables enters as an open fact (or rule): the
+            # rules that may read it match by unification (forward.Run's general path)
             added = load_positive(ctx, ty if h.mode == LIN else (Bang(ty) if h.mode == PERS else Aff(ty)),
                                   self.program.compile_context_rule)
             if names is not None:
@@ -336,6 +335,11 @@ class Backward:
         for t, n in ctx.aff.items():
             occ.extend([AFF, t, False] for _ in range(n))
         pers = list(ctx.pers)
+        for m, t in ctx.open:
+            if m == PERS:
+                pers.append(t)
+            else:
+                occ.append([m, t, False])
         serve = {LIN: (LIN, AFF), AFF: (AFF,), PERS: ()}
 
         chosen: list = []
@@ -452,9 +456,72 @@ def head_families(ty: Node) -> set:
     return out
 
 
-def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> Iterator[None]:
+def context_hyps(ctx: Context, fams, mode: str, consumed=()) -> list:
+    """The facts of the families ``fams`` as hypotheses for proving a forward rule's premise of
+    mode ``mode``: linear, affine and persistent facts for a linear premise, affine and
+    persistent ones for an affine premise, persistent ones for a persistent premise (as Celf
+    does); the copies ``consumed`` (what the match took so far) are left out. An open fact
+    (one holding logic variables) is a hypothesis like any other."""
+    used: dict = {}
+    for m, t in consumed:
+        used[m, t] = used.get((m, t), 0) + 1
+    out: list = []
+    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
+    for f in fams:
+        bag = ctx.index.get(f)
+        if bag:
+            for t in bag.items:
+                if mode == LIN:
+                    out.extend(Hyp(t, LIN) for _ in range(lin.get(t, 0) - used.get((LIN, t), 0)))
+                if mode != PERS:
+                    out.extend(Hyp(t, AFF) for _ in range(aff.get(t, 0) - used.get((AFF, t), 0)))
+                if t in pers:
+                    out.append(Hyp(t, PERS))
+    if ctx.open:
+        fams = set(fams)
+        for m, t in ctx.open:
+            if t.head not in fams or (m == LIN and mode != LIN) or (m == AFF and mode == PERS):
+                continue
+            if m != PERS and used.get((m, t)):
+                used[m, t] -= 1
+                continue
+            out.append(Hyp(t, m))
+    return out
+
+
+def prove_consuming(bw: Backward, ctx: Context, goal: Node, mode: str, consumed=()) -> Iterator[list]:
+    """Prove ``goal`` (a premise of mode ``mode`` of a forward rule, its slots already logic
+    variables) by proof search over the context's facts of the families it may need and the
+    signature's clauses; committed to the first proof, whose bindings are kept (the caller
+    undoes them through ``bw.u``). Yields once, the facts the proof consumed ``[(mode, fact)]``."""
+    fam = goal.head if type(goal) is Root else None
+    fams = bw.program.premise_families(fam) if fam is not None else tuple(ctx.index) + tuple(
+        {t.head for _m, t in ctx.open})
+    hyps = context_hyps(ctx, fams, mode, consumed)
+    saved = bw.hyps
+    bw.hyps = hyps
+    hmark = len(bw.htrail)
+    used = None
+    proofs = bw.solve(goal)
+    try:
+        for _ in proofs:
+            used = [(h.mode, h.ty) for h in hyps if h.used and h.mode != PERS]
+            break
+    finally:
+        # keep the unifier's bindings (the first proof is committed); release the hypotheses
+        proofs.close()
+        bw.hyps = saved
+        while len(bw.htrail) > hmark:
+            bw.htrail.pop().used = False
+    if used is not None:
+        yield used
+
+
+def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list, consumed=()) -> Iterator:
     """Solve a forward rule's backward premise: slots unbound so far become logic variables,
-    persistent facts of the context serve as hypotheses; committed to the first proof.
+    the context's facts serve as hypotheses (persistent ones for a persistent premise; a
+    linear premise may also consume linear and affine facts, an affine one affine facts);
+    committed to the first proof. Yields once per proof (the facts it consumed, or None).
 
     The proof search is finished (and undone) before the bindings are handed over, so a
     premise's answer is a function of the premise, the values of its slots and the
@@ -464,6 +531,9 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
     bi = BUILTINS.get(p.family)
     if bi is not None:
         yield from _builtin_premise(bi, tpl, p, b, trail)
+        return
+    if p.mode != PERS or ctx.open:
+        yield from _prove_with_context(bw, ctx, p, b, trail, consumed)
         return
     pat = p.pattern
     memo = key = None
@@ -544,6 +614,36 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list) -> I
             b[i] = v
             trail.append(i)
         yield
+
+
+def _prove_with_context(bw: Backward, ctx: Context, p, b: list, trail: list, consumed) -> Iterator[list]:
+    """A premise proved with the context's facts as hypotheses (a linear or affine premise,
+    or any premise when the context holds open facts): the ground bindings it finds are
+    handed to the slots, and the facts it consumed to the caller."""
+    evs: dict[int, Root] = {}
+    vals = list(b)
+    for i, v in enumerate(vals):
+        if v is None:
+            x = Root(EVar(f"s{i}"), ())
+            evs[i] = x
+            vals[i] = x
+    goal = inst(p.pattern, vals)
+    mark = bw.u.mark()
+    found = None
+    used = None
+    for used in prove_consuming(bw, ctx, goal, p.mode, consumed):
+        found = []
+        for i, x in evs.items():
+            v = zonk(x)
+            if v is not x and not v.evars:
+                found.append((i, v))
+        break
+    bw.u.undo(mark)
+    if found is not None:
+        for i, v in found:
+            b[i] = v
+            trail.append(i)
+        yield used
 
 
 #: entries kept per program before the premise memo starts afresh (bounds its memory)
@@ -661,8 +761,79 @@ class _Names:
     def name_of(self, mode: str, t) -> str:
         return self._take(mode, t)
 
+    def _premise_args(self, step, ctx) -> Optional[list]:
+        """The arguments of a step whose rule has premises proved by backward chaining, in the
+        order the premises are written: a context premise by the name of the fact it used, a
+        proved one by its proof (found again over the facts the step consumed for it and the
+        persistent facts, named), as Celf prints them: ``r (b_from_a X1)``."""
+        tpl = step.template
+        b = list(step.bindings)
+        left = list(step.consumed)
+        marks = {LIN: "", AFF: "@", PERS: "!"}
+        out: list = []
+        backs = []
+        for p in tpl.premises:
+            if p.backward:
+                backs.append(p)
+                out.append(p)
+                continue
+            try:
+                want = zonk(inst(p.pattern, b))
+            except KeyError:
+                return None
+            for k, (m, t) in enumerate(left):
+                if t is want or zonk(t) is want:
+                    out.append(marks[p.mode] + self._take(m, t))
+                    del left[k]
+                    break
+            else:
+                return None
+        for i, p in enumerate(out):
+            if type(p) is str:
+                continue
+            bi = BUILTINS.get(p.family)
+            if bi is not None:
+                out[i] = "!" + bi.name
+                continue
+            try:
+                goal = zonk(inst(p.pattern, b))
+            except KeyError:
+                return None
+            hyps = []
+            for m, t in left:
+                hyps.append(Hyp(t, m, name=(self.facts.get(t) or ["_"])[0]))
+            fam = goal.head if type(goal) is Root else None
+            for f in (self.bw.program.premise_families(fam) if fam is not None else ()):
+                bag = ctx.index.get(f)
+                for t in (bag.items if bag else ()):
+                    if t in ctx.pers:
+                        hyps.append(Hyp(t, PERS, name=(self.facts.get(t) or ["_"])[0]))
+            bw = Backward(self.bw.program, seed=self.bw.seed)
+            bw.hyps = hyps
+            pf = None
+            proofs = bw.solve(goal)
+            try:
+                for pf in proofs:
+                    break
+            finally:
+                proofs.close()
+            if pf is None:
+                return None
+            for h in hyps:
+                if h.used and h.mode != PERS:
+                    self._take(h.mode, h.ty)
+            s = show_proof(pf)
+            if pf[0] == "lam" or (pf[0] == "app" and pf[2]):
+                s = f"({s})"
+            out[i] = marks[p.mode] + s
+        return out
+
     def step(self, step, ctx) -> None:
-        args = [self._take(m, t) for m, t in step.consumed]
+        args = None
+        if step.template is not None and step.template.backward_premises:
+            args = self._premise_args(step, ctx)
+        if args is None:
+            args = [self._take(m, t) for m, t in step.consumed]
         head = self.rules.get(step.ctx_rule, "_") if step.ctx_rule is not None else step.rule
         pattern = []
         for act in step.template.head:
@@ -698,8 +869,8 @@ def show_proof(p) -> str:
             return "{...}"
         out = []
         for pattern, head, args in p[1]:
-            pat = pattern[0] if len(pattern) == 1 else "[" + ", ".join(pattern) + "]"
+            pat = "1" if not pattern else pattern[0] if len(pattern) == 1 else "[" + ", ".join(pattern) + "]"
             out.append(f"let {{{pat}}} = {' '.join([head] + args)} in ")
-        final = p[2][0] if len(p[2]) == 1 else "[" + ", ".join(p[2]) + "]"
+        final = "1" if not p[2] else p[2][0] if len(p[2]) == 1 else "[" + ", ".join(p[2]) + "]"
         return "{" + "".join(out) + final + "}"
     return repr(p)

@@ -40,7 +40,7 @@ def run_clf(file: Path, seed: int = 0, trace: bool = False, fair: bool = False, 
         style = None
         if line.endswith(" ok."):
             style = "green"
-        elif line.endswith(" error.") or line == "No solution.":
+        elif line.endswith(" error.") or line == "Query failed":
             style = "red"
         elif line.startswith((" #", "Solution")):
             style = "cyan"

@@ -16,7 +16,7 @@ from typing import Iterator, Optional
 
 from .builtins import BUILTINS
 from .rules import AFF, LIN, PERS, Template
-from .terms import Meta, Node, Root
+from .terms import Meta, Node, Root, zonk
 
 _rule_ids = itertools.count(1)
 
@@ -116,6 +116,7 @@ class CtxRule:
     mode: str
     source: Node  # the rule's type (instantiated), for printing and backward use
     keys: tuple = ()
+    open: bool = False  # its slot values or type hold logic variables: matched by the general path
 
     def __hash__(self) -> int:
         return self.uid
@@ -138,6 +139,10 @@ class Context:
         self.rules: dict[int, CtxRule] = {}
         self.rule_index: dict = {}  # family | (family, i, arg) | None -> Bag of rule uids
         self.inert: list[tuple[str, Node]] = []  # hypotheses only backward chaining can use
+        # facts holding logic variables, [(mode, fact)] (a list: a multiset by repetition, compared
+        # by identity). They are not hash-consed nor indexed: only the rules that may read them
+        # (forward.Run's general path, decided per rule) look here, matching by unification.
+        self.open: list[tuple[str, Node]] = []
         self.implicit: Optional[dict] = None  # the program's implicit-argument counts, for printing
         self._canon = None  # state.canonical_key's cached result; every mutator clears it
         # For copy(): families whose bags may not be in the order re-adding the facts would
@@ -220,6 +225,38 @@ class Context:
                     b = d[a] = _clone(b)
                     owned.add(id(b))
                 b.add(t)
+
+    def add_any(self, t: Root, mode: str) -> Root:
+        """Add a fact that may hold logic variables: once instantiated ones are replaced by their
+        values, a ground fact joins the index (``add_fact``), any other the open facts. Returns
+        the fact as stored."""
+        if t.evars:
+            t = zonk(t)
+            if t.evars:
+                self._canon = None
+                if mode == PERS and any(m == PERS and u is t for m, u in self.open):
+                    return t
+                self.open.append((mode, t))
+                return t
+        self.add_fact(t, mode)
+        return t
+
+    def remove_any(self, t: Root, mode: str) -> None:
+        """Remove a fact that ``add_any`` stored (an open one by identity)."""
+        if t.evars:
+            if mode == PERS:
+                return
+            self._canon = None
+            for i, (m, u) in enumerate(self.open):
+                if u is t and m == mode:
+                    del self.open[i]
+                    return
+            raise KeyError("open fact not in the context")
+        self.remove_fact(t, mode)
+
+    def open_of(self, fam) -> list:
+        """The open facts of family ``fam``, [(mode, fact)] (their head followed)."""
+        return [(m, t) for m, t in self.open if t.head is fam]
 
     def remove_fact(self, t: Root, mode: str) -> None:
         self._canon = None
@@ -341,7 +378,8 @@ class Context:
             yield PERS, t, 1
 
     def size(self) -> int:
-        return sum(self.lin.values()) + sum(self.aff.values()) + len(self.pers) + len(self.rules) + len(self.inert)
+        return (sum(self.lin.values()) + sum(self.aff.values()) + len(self.pers) + len(self.rules) + len(self.inert)
+                + len(self.open))
 
     def _facts_in_order(self) -> list:
         """Each fact once, in the order facts() first gives it."""
@@ -405,7 +443,7 @@ class Context:
         rules: dict = {}
         rule_index: dict = {}
         for r in self.rules.values():
-            rules[r.uid] = CtxRule(r.uid, r.alts, r.env, r.mode, r.source, r.keys)
+            rules[r.uid] = CtxRule(r.uid, r.alts, r.env, r.mode, r.source, r.keys, r.open)
             for k in r.keys:
                 b = rule_index.get(k)
                 if b is None:
@@ -414,6 +452,7 @@ class Context:
         c.rules = rules
         c.rule_index = rule_index
         c.inert = list(self.inert)
+        c.open = list(self.open)
         c.implicit = self.implicit
         c._canon = None
         return c
@@ -480,7 +519,7 @@ def _wake_key(pattern: Node, env: tuple):
 def ground_value(a: Node, b) -> Optional[Node]:
     """The value of a pattern argument if the bindings already determine it."""
     if not a.metas:
-        return a if not a.maxb else None
+        return a if not (a.maxb or a.evars) else None  # a logic variable is no index key
     if type(a) is Root and not a.args and type(a.head) is Meta:
         return b[a.head.index]
     return None

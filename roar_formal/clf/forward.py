@@ -22,7 +22,7 @@ from typing import Callable, Iterator, Optional
 from .builtins import BUILTINS
 from .context import Context, CtxRule
 from .rules import AFF, LIN, PERS, Template, positive_parts
-from .terms import BVar, Const, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, _map_bvars, bvar
+from .terms import BVar, Const, EVar, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, zonk, _map_bvars, bvar
 
 # ------------------------------------------------------------------ matching
 
@@ -221,8 +221,13 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
             return
         p = back[j]
         mark = len(trail)
-        for _ in prover(ctx, tpl, p, b, trail):
-            yield from _backward(j + 1)
+        for extra in prover(ctx, tpl, p, b, trail, consumed):
+            if extra:  # facts a linear or affine premise's proof consumed
+                consumed.extend(extra)
+                yield from _backward(j + 1)
+                del consumed[len(consumed) - len(extra):]
+            else:
+                yield from _backward(j + 1)
         while len(trail) > mark:
             b[trail.pop()] = None
 
@@ -396,32 +401,284 @@ class Step:
     produced: list = field(default_factory=list)  # [(mode, fact or CtxRule)]
 
 
-def fire(ctx: Context, tpl: Template, b: list, consumed: list, crule: Optional[CtxRule]) -> Step:
-    """Apply a matched template to ``ctx`` (in place)."""
+def fire(ctx: Context, tpl: Template, b: list, consumed: list, crule: Optional[CtxRule],
+         general: bool = False) -> Step:
+    """Apply a matched template to ``ctx`` (in place). ``general``: the match was made by the
+    general path (its bindings and consumed facts may hold logic variables)."""
     step = Step(tpl.name, tpl, (), consumed, crule.uid if crule else None)  # bindings set below
-    for mode, t in consumed:
-        ctx.remove_fact(t, mode)
+    if general:
+        for mode, t in consumed:
+            ctx.remove_any(t, mode)
+        for i, v in enumerate(b):
+            if v is not None and v.evars:
+                b[i] = zonk(v)
+    else:
+        for mode, t in consumed:
+            ctx.remove_fact(t, mode)
     if crule is not None and crule.mode != PERS:
         ctx.remove_rule(crule)
+    if tpl.open_slots:
+        # Pi variables no premise determined: logic variables, as in Celf
+        names = tpl.slot_names
+        for s in tpl.open_slots:
+            if b[s] is None:
+                b[s] = Root(EVar(names[s] if s < len(names) else "X"), ())
+        general = True
     produced = step.produced
     for act in tpl.head:
         kind = act[0]
         if kind == "fresh":
             b[act[1]] = Root(Param(act[2]), ())
         elif kind == "fact":
-            t = inst(act[2], b)
-            ctx.add_fact(t, act[1])
+            if general:
+                t = ctx.add_any(inst(act[2], b), act[1])
+            else:
+                t = inst(act[2], b)
+                ctx.add_fact(t, act[1])
             produced.append((act[1], t))
         elif kind == "rule":
             _, mode, alts, src, envslots = act
             vals = [b[s] for s in reversed(envslots)]
             source = subst(src, vals) if vals else src
             r = ctx.add_rule(alts, tuple(b), mode, source)
+            if general and (source.evars or any(v is not None and v.evars for v in b)):
+                r.open = True
             produced.append((mode, r))
         else:
             ctx.inert.append((act[1], act[2]))
     step.bindings = tuple(b)
     return step
+
+
+# ------------------------------------------------------------------ the general path
+
+
+def general_match(ctx: Context, tpl: Template, b: list, start: int, u, prover) -> Optional[list]:
+    """The first match of ``tpl`` by unification (Celf's semantics for contexts holding logic
+    variables): every unbound slot is a fresh logic variable; the premises found in the
+    context are taken the one with the fewest candidate facts first (as on the ground path),
+    each unified with the facts of its family, ground (through the argument index once an
+    argument is known) and open; then the premises proved by backward chaining, in the order
+    written, go to the proof search. Committed to the first match. The bindings stay in the unifier ``u`` (undone by whoever owns it, e.g. the
+    backtracking around a monad); ``b`` receives the slots' values. None when no match."""
+    vals = list(b)
+    names = tpl.slot_names
+    for i, v in enumerate(vals):
+        if v is None:
+            vals[i] = Root(EVar(names[i] if i < len(names) else f"s{i}"), ())
+    prems = tpl.premises
+    consumed: list = []
+    index = ctx.index
+    by_arg = ctx.by_arg
+    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
+    bw = getattr(prover, "bw", None)
+
+    def left(mode, t) -> bool:
+        if mode == PERS:
+            return True
+        n = sum(1 for m, x in consumed if x is t and m == mode)
+        if t.evars:
+            return n == 0
+        return (lin.get(t, 0) if mode == LIN else aff.get(t, 0)) > n
+
+    ctx_prems = [p for p in prems if not p.backward]
+    back_prems = [p for p in prems if p.backward]
+    done = [False] * len(ctx_prems)
+    nctx = len(ctx_prems)
+
+    def pick() -> int:
+        """The remaining context premise with the fewest candidate facts (-1: one has none)."""
+        best, best_n = -2, 0
+        for i, p in enumerate(ctx_prems):
+            if done[i]:
+                continue
+            bag = index.get(p.family)
+            n = (len(bag.items) if bag is not None else 0) + sum(1 for _m, t in ctx.open if t.head is p.family)
+            if not n:
+                return -1
+            if best < 0 or n < best_n:
+                best, best_n = i, n
+        return best
+
+    def go(k: int) -> bool:
+        if k == len(prems):
+            return True
+        if k < nctx:
+            i = pick()
+            if i < 0:
+                return False
+            done[i] = True
+            try:
+                return ctx_premise(k, ctx_prems[i])
+            finally:
+                done[i] = False
+        p = back_prems[k - nctx]
+        goal = inst(p.pattern, vals)
+        if p.backward:
+            if p.family in BUILTINS:
+                from .builtins import evaluate
+                res = evaluate(BUILTINS[p.family], deref_args(goal))
+                if res is None or res is False:
+                    return False
+                mark = u.mark()
+                if res is True or u.unify(goal.args[-1], res):
+                    if go(k + 1):
+                        return True
+                u.undo(mark)
+                return False
+            if bw is None:
+                return False
+            from .backward import prove_consuming
+            mark = u.mark()
+            for extra in prove_consuming(bw, ctx, goal, p.mode, consumed):
+                consumed.extend(extra)
+                if go(k + 1):
+                    return True
+                del consumed[len(consumed) - len(extra):]
+            u.undo(mark)
+            return False
+        return False
+
+    def ctx_premise(k: int, p) -> bool:
+        goal = inst(p.pattern, vals)
+        fam = p.family
+        serve = _SERVE[p.mode]
+        # the ground facts: through the argument index when an argument is already known
+        # (as on the ground path), else the family's bag; then the open facts of the family
+        bag = index.get(fam)
+        if bag is not None and type(goal) is Root and goal.args:
+            per = by_arg.get(fam)
+            for j, a in enumerate(goal.args):
+                if a.evars:
+                    a = zonk(a)
+                if a.evars or a.maxb or per is None or j >= len(per):
+                    continue
+                b2 = per[j].get(a)
+                if b2 is None:
+                    bag = None
+                    break
+                if len(b2.items) < len(bag.items):
+                    bag = b2
+        items = bag.items if bag is not None else ()
+        n = len(items)
+        first = start % n if (start >= 0 and n) else 0
+        for r in range(n):
+            t = items[(first + r) % n]
+            for mode in serve:
+                if not ((t in pers) if mode == PERS else ((lin if mode == LIN else aff).get(t, 0) > 0)):
+                    continue
+                if not left(mode, t):
+                    break
+                mark = u.mark()
+                if u.unify(goal, t):
+                    consumed.append((mode, t))
+                    if go(k + 1):
+                        return True
+                    consumed.pop()
+                u.undo(mark)
+                break
+        for mode, t in ctx.open:
+            if t.head is not fam or mode not in serve or not left(mode, t):
+                continue
+            mark = u.mark()
+            if u.unify(goal, t):
+                consumed.append((mode, t))
+                if go(k + 1):
+                    return True
+                consumed.pop()
+            u.undo(mark)
+        return False
+
+    mark = u.mark()
+    if not go(0):
+        u.undo(mark)
+        return None
+    if not u.solved():
+        u.undo(mark)
+        return None
+    for i, v in enumerate(vals):
+        b[i] = v
+    return consumed
+
+
+def deref_args(goal: Node) -> tuple:
+    return tuple(zonk(a) for a in goal.args)
+
+
+def open_families(templates, ctx: Context, program) -> tuple[set, set]:
+    """Which families may hold open facts (facts with logic variables) in a run from ``ctx``,
+    and which templates must therefore match by unification (the general path).
+
+    Decided once per run, statically, by a closure over the rules: the families of the
+    context's open facts and of the head facts of rules with an undetermined Pi variable
+    are open; a rule with a premise of an open family (or proved from one: the families its
+    clauses need) takes the general path, and the families its head produces become open
+    too (its bindings may hold logic variables). Everything else keeps the ground fast path."""
+    every: list = []
+
+    def walk(t):
+        every.append(t)
+        for act in t.head:
+            if act[0] == "rule":
+                for sub in act[2]:
+                    walk(sub)
+
+    for t in templates:
+        walk(t)
+    for r in ctx.rules.values():
+        for t in r.alts:
+            walk(t)
+    opened: set = {t.head for _m, t in ctx.open}
+    seeded: list = [t for t in every if t.open_slots]
+    for r in ctx.rules.values():
+        if r.open:
+            seeded.extend(r.alts)
+
+    def heads(t, acc):
+        for act in t.head:
+            if act[0] == "fact":
+                acc.add(act[2].head)
+            elif act[0] == "rule":
+                for sub in act[2]:
+                    heads(sub, acc)
+
+    for t in seeded:
+        heads(t, opened)
+    general: set = set()
+    reads: dict = {}
+    for t in every:
+        fams = set()
+        for p in t.premises:
+            if p.family is None or p.family in BUILTINS:
+                continue
+            if p.backward and program is not None:
+                fams.update(program.premise_families(p.family))
+            else:
+                fams.add(p.family)
+        reads[id(t)] = fams
+    changed = True
+    while changed:
+        changed = False
+        for t in every:
+            if t in general:
+                continue
+            if reads[id(t)] & opened:
+                general.add(t)
+                heads(t, opened)
+                changed = True
+    return opened, general
+
+
+def _has_open_slots(templates) -> bool:
+    stack = list(templates)
+    while stack:
+        t = stack.pop()
+        if t.open_slots:
+            return True
+        for act in t.head:
+            if act[0] == "rule":
+                stack.extend(act[2])
+    return False
 
 
 # ------------------------------------------------------------------ drivers
@@ -487,6 +744,27 @@ class Run:
                  fair: bool = False, prover: Optional[Prover] = None,
                  on_step: Optional[Callable[[Step, Context], None]] = None):
         self.templates = [t for t in templates if t.forward]
+        # The general (unification) path, for the rules that may meet logic variables in the
+        # context: decided here, once, by a static closure over the rules (open_families);
+        # None when no rule needs it (then every rule keeps the ground fast path).
+        self.general: Optional[set] = None
+        self.u = None
+        bw = getattr(prover, "bw", None)
+        program = getattr(bw, "program", None)
+        has_open = None
+        if program is not None:
+            has_open = program.__dict__.get("_has_open_slots")
+        if has_open is None:
+            has_open = _has_open_slots(self.templates)
+            if program is not None and templates is getattr(program, "templates", None):
+                program.__dict__["_has_open_slots"] = has_open
+        if has_open or ctx.open or any(r.open or _has_open_slots(r.alts) for r in ctx.rules.values()):
+            _opened, self.general = open_families(self.templates, ctx, program)
+            if bw is not None:
+                self.u = bw.u
+            else:
+                from .unify import Unifier
+                self.u = Unifier()
         self.ctx = ctx
         self.rng = random.Random(seed)
         self._random = self.rng.random  # bound once: the scheduler draws twice a step
@@ -508,7 +786,11 @@ class Run:
             # persistent fact appears. A rule with no context premise is always retried.
             if any(p.backward and p.family not in BUILTINS for p in t.premises):
                 self.proved.append(t)
-            if not fams:
+            # a premise proved from the context's linear or affine facts may use facts of any
+            # family its clauses need: such a rule (and any on the general path with a proved
+            # premise) is retried after every step
+            if not fams or any(p.backward and p.family not in BUILTINS and (
+                    p.mode != PERS or (self.general and t in self.general)) for p in t.premises):
                 self.always.append(t)
             for f in fams:
                 self.by_family.setdefault(f, []).append(t)
@@ -556,20 +838,72 @@ class Run:
             order = range(len(alts))
             if len(alts) > 1 and not self.fair:
                 order = self.rng.sample(range(len(alts)), len(alts))
+            general = self.general
             for a in order:
                 tpl = alts[a]
                 if not tpl.forward:
                     continue
                 b = list(item.env)
+                if item.open or (general and tpl in general):
+                    consumed = self._general_first(tpl, b, start)
+                    if consumed is not None:
+                        return fire(ctx, tpl, b, consumed, item, True)
+                    continue
                 consumed = self._first(tpl, b, start)
                 if consumed is not None:
                     return fire(ctx, tpl, b, consumed, item)
             return None
         b = [None] * item.nslots
+        general = self.general
+        if general and item in general:
+            consumed = self._general_first(item, b, start)
+            if consumed is not None:
+                return fire(ctx, item, b, consumed, None, True)
+            return None
         consumed = self._first(item, b, start)
         if consumed is not None:
             return fire(ctx, item, b, consumed, None)
         return None
+
+    def _general_first(self, tpl: Template, b: list, start: int) -> Optional[list]:
+        if self.u is None:
+            from .unify import Unifier
+            self.u = Unifier()
+        return general_match(self.ctx, tpl, b, start, self.u, self.prover)
+
+    def _any_enabled(self) -> bool:
+        """Is some rule enabled (the bound was reached: quiescent only if none is)? Matches
+        found on the general path are undone."""
+        general = self.general
+        ctx = self.ctx
+        if not general:
+            return any(True for _ in enabled_steps(self.templates, ctx, self.prover, first_only=True))
+        fast = [t for t in self.templates if t not in general]
+        if any(True for _ in enabled_steps(fast, ctx, self.prover,
+                                           first_only=True, rules=False)):
+            return True
+        u = self.u
+        for t in self.templates:
+            if t in general:
+                mark = u.mark()
+                found = general_match(ctx, t, [None] * t.nslots, 0, u, self.prover)
+                u.undo(mark)
+                if found is not None:
+                    return True
+        for r in list(ctx.rules.values()):
+            for t in r.alts:
+                if not t.forward:
+                    continue
+                b = list(r.env)
+                if r.open or t in general:
+                    mark = u.mark()
+                    found = general_match(ctx, t, b, 0, u, self.prover)
+                    u.undo(mark)
+                else:
+                    found = self._first(t, b, 0)
+                if found is not None:
+                    return True
+        return False
 
     def _first(self, tpl: Template, b: list, start: int) -> Optional[list]:
         if tpl.backward_premises:
@@ -646,6 +980,10 @@ class Run:
                 for t in self._woken(x):
                     agenda.add(t)
                 if ctx.rules:  # no live rule: nothing to wake
+                    if x.evars:  # an open fact is not indexed by its arguments: wake every rule
+                        for r in ctx.rules.values():
+                            agenda.add(r)
+                        continue
                     for uid in ctx.rules_woken_by(x):
                         r = ctx.rules.get(uid)
                         if r is not None:
@@ -658,7 +996,7 @@ class Run:
             if self.on_step is not None:
                 self.on_step(step, ctx)
         # bound reached: quiescent only if nothing is enabled any more
-        return not any(True for _ in enabled_steps(self.templates, ctx, self.prover, first_only=True))
+        return not self._any_enabled()
 
 
 @dataclass(frozen=True)
@@ -676,7 +1014,7 @@ class Choice:
 
 
 def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prover] = None,
-                  first_only: bool = False) -> Iterator[Choice]:
+                  first_only: bool = False, rules: bool = True) -> Iterator[Choice]:
     """Every distinct enabled step of ``ctx`` (all rules, all matches, all fact modes).
 
     A template is tried only if every rigid path its premises require (see
@@ -702,7 +1040,7 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
                 yield Choice(t, None, bindings, consumed)
                 if first_only:
                     return
-    for r in list(ctx.rules.values()):
+    for r in (list(ctx.rules.values()) if rules else ()):
         for t in r.alts:
             if not t.forward:
                 continue
@@ -802,10 +1140,15 @@ def _all_back(k, back, b, consumed, trail, ctx, tpl, prover, out, first_only) ->
         return first_only
     mark = len(trail)
     stop = False
-    proofs = prover(ctx, tpl, back[k], b, trail)
+    proofs = prover(ctx, tpl, back[k], b, trail, consumed)
     try:
-        for _ in proofs:
-            if _all_back(k + 1, back, b, consumed, trail, ctx, tpl, prover, out, first_only):
+        for extra in proofs:
+            if extra:
+                consumed.extend(extra)
+            done = _all_back(k + 1, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
+            if extra:
+                del consumed[len(consumed) - len(extra):]
+            if done:
                 stop = True
                 break
     finally:
@@ -893,7 +1236,10 @@ def load_positive(ctx: Context, s: Node, compile_fn, name: str = "init") -> list
     for mode, part in positive_parts(s, lambda hint, _ty: Root(Param(hint), ())):
         tp = type(part)
         if tp is Root:
-            ctx.add_fact(part, mode)
+            if part.evars:  # a fact holding logic variables (of a query): an open fact
+                part = ctx.add_any(part, mode)
+            else:
+                ctx.add_fact(part, mode)
             added.append((mode, part))
         elif tp is Top:
             ctx.inert.append((mode, part))
@@ -901,5 +1247,7 @@ def load_positive(ctx: Context, s: Node, compile_fn, name: str = "init") -> list
             alts = compile_fn(name, part)
             nslots = alts[0].nslots if alts else 0
             r = ctx.add_rule(alts, tuple([None] * nslots), mode, part)
+            if part.evars:
+                r.open = True
             added.append((mode, r))
     return added

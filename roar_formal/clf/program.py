@@ -133,12 +133,7 @@ class Program:
 
     def prover(self, bw: Optional[Backward] = None):
         """The callback forward matching uses for premises solved by proof search."""
-        bw = bw or Backward(self)
-
-        def prove(ctx, tpl, p, b, trail):
-            return prove_premise(bw, ctx, tpl, p, b, trail)
-
-        return prove
+        return _Prover(bw or Backward(self))
 
     # ---------------------------------------------------------- running
     def run(self, ctx: Context, max_steps: Optional[int] = None, seed: Optional[int] = 0,
@@ -149,8 +144,27 @@ class Program:
         return r.steps, q
 
     def steps(self, ctx: Context) -> list[Choice]:
-        """Every enabled step of ``ctx`` (explorer API)."""
+        """Every enabled step of ``ctx`` (explorer API). The explorer's states are ground: a
+        context holding logic variables (open facts) is refused."""
+        if ctx.open:
+            from ..errors import UnsupportedError
+            raise UnsupportedError("exploring a state whose facts hold logic variables is not supported "
+                                   "(a rule with a Pi variable only in its head, or a query's logic variable); "
+                                   "#query and #exec run such programs")
         return list(enabled_steps(self.templates, ctx, self.prover()))
 
     def successor(self, ctx: Context, choice: Choice) -> tuple[Context, Step]:
         return successor(ctx, choice)
+
+
+class _Prover:
+    """The callback forward matching uses for premises solved by proof search; ``bw`` is the
+    proof search it runs (whose unifier the general matching path also uses)."""
+
+    __slots__ = ("bw",)
+
+    def __init__(self, bw: Backward):
+        self.bw = bw
+
+    def __call__(self, ctx, tpl, p, b, trail, consumed=()):
+        return prove_premise(self.bw, ctx, tpl, p, b, trail, consumed)

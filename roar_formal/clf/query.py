@@ -39,9 +39,12 @@ def show_context(ctx: Context) -> list[str]:
         prefix = {LIN: "", AFF: "@", PERS: "!"}[mode]
         text = prefix + show(t)
         lines.extend([text] * n)
+    for mode, t in ctx.open:  # facts holding logic variables, with their values so far
+        prefix = {LIN: "", AFF: "@", PERS: "!"}[mode]
+        lines.append(prefix + show(zonk(t)))
     for r in ctx.rules.values():
         prefix = {LIN: "", AFF: "@", PERS: "!"}[r.mode]
-        lines.append(prefix + "(" + show(r.source) + ")")
+        lines.append(prefix + "(" + show(zonk(r.source)) + ")")
     for mode, t in ctx.inert:
         prefix = {LIN: "", AFF: "@", PERS: "!"}[mode]
         lines.append(prefix + show(t))
@@ -65,12 +68,13 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
     solutions; the query succeeds as soon as one attempt finds ``e`` of them. A query with
     ``l = 0`` or ``a = 0`` is ignored."""
     res = DirectiveResult("query", True)
-    if q.look == 0 or q.attempts == 0:
-        return res
     program = program.at(q.prefix)
     show = program.show
     head = f"Query ({_b(q.depth)}, {_b(q.expected)}, {_b(q.look)}, {_b(q.attempts)}) {show(q.goal)}."
     emit(head)
+    if q.look == 0 or q.attempts == 0:
+        emit("Ignoring query")  # Celf's words: nothing is run, nothing checked
+        return res
     attempts = 1 if q.attempts == "*" else q.attempts
     look = None if q.look == "*" else q.look
     depth = None if q.depth == "*" else q.depth
@@ -99,13 +103,15 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
             raise BuiltinError(exc.message, exc.pos or q.pos, exc.notes) from None
         res.solutions += count
         counts.append(count)
-        if count == 0:
-            emit("No solution.")
-        if q.expected == "*" or count == q.expected:
+        if q.expected == "*":
+            continue  # as Celf: no expectation, so every attempt is made and no verdict printed
+        if count == q.expected:
             emit("Query ok.")
             return res
+    if q.expected == "*":
+        return res
     res.ok = False
-    emit("Query error.")
+    emit("Query failed")  # Celf's words
     found = counts[0] if len(counts) == 1 else "/".join(str(c) for c in counts)
     tries = "" if len(counts) == 1 else f" in any of {len(counts)} attempts (found {found})"
     if tries:

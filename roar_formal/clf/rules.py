@@ -73,6 +73,9 @@ class Template:
     slot_names: list[str] = field(default_factory=list)
     source: Optional[Node] = None  # the type it was compiled from (slots as Metas)
     match_plan: Optional[tuple] = field(default=None, repr=False)  # forward._plans, made on first use
+    # slots of Pi variables that no premise determines: the head then puts logic variables in
+    # the context (Celf's semantics), and the rules reading them take the general path
+    open_slots: tuple = ()
 
     @cached_property
     def backward_premises(self) -> bool:
@@ -142,10 +145,11 @@ class Compiler:
         elif tt is Imp:
             dom = ty.dom
             # A built-in premise is always decided by the engine (it consumes nothing, so
-            # its mode does not matter); another atom is proved backwards when it is
-            # persistent and its family has clauses, and found in the context otherwise.
-            if type(dom) is Root and dom.head not in BUILTINS and (
-                    dom.head not in self.backward_families or ty.mode != PERS):
+            # its mode does not matter); another atom is proved backwards when its family
+            # has clauses (as Celf does: the context's facts first, then the clauses; a
+            # linear or affine premise may consume facts of the context doing so), and
+            # found in the context otherwise.
+            if type(dom) is Root and dom.head not in BUILTINS and dom.head not in self.backward_families:
                 p = Premise(ty.mode, _conv(dom, env), dom.head)
             else:
                 p = Premise(ty.mode, _conv_type(dom, env, self.alloc), dom.head if type(dom) is Root else None,
@@ -217,7 +221,18 @@ def compile_rule(name: str, ty: Node, pos: Optional[Pos] = None,
     for t in temps:
         if t.forward:
             _check_determined(t, c.names, pos)
+            _mark_nested(t, c.names)
     return temps
+
+
+def _mark_nested(t: Template, names: list[str]) -> None:
+    """The undetermined slots of the rules a head puts in the context (their logic variables)."""
+    for act in t.head:
+        if act[0] == "rule":
+            for sub in act[2]:
+                if sub.forward:
+                    _check_determined(sub, names, None, builtins=False)
+                    _mark_nested(sub, names)
 
 
 def _metas_bound_by(p: Node, acc: set) -> None:
@@ -237,7 +252,7 @@ def _metas_bound_by(p: Node, acc: set) -> None:
             stack.extend(v for v in (getattr(x, f) for f in type(x).fields) if isinstance(v, Node))
 
 
-def _check_determined(t: Template, names: list[str], pos: Optional[Pos]) -> None:
+def _check_determined(t: Template, names: list[str], pos: Optional[Pos], builtins: bool = True) -> None:
     bound: set = set(range(t.nouter))
     for p in t.premises:  # premises found in the context bind by matching (all are matched first)
         if not p.backward:
@@ -246,7 +261,7 @@ def _check_determined(t: Template, names: list[str], pos: Optional[Pos]) -> None
         if not p.backward:
             continue
         bi = BUILTINS.get(p.family)
-        if bi is None:
+        if bi is None or not builtins:
             _metas_bound_by(p.pattern, bound)
             continue
         args = p.pattern.args
@@ -267,11 +282,9 @@ def _check_determined(t: Template, names: list[str], pos: Optional[Pos]) -> None
     _collect_head(t.head, used)
     missing = sorted(s for s in used - bound - fresh if s >= 0 and s < len(names)
                      and not _is_fresh_anywhere(t.head, s))
-    if missing:
-        nm = ", ".join(names[s] for s in missing)
-        raise UnsupportedError(
-            f"in rule '{t.name}': variable(s) {nm} are not determined by the rule's premises; "
-            "forward chaining needs every Pi variable to occur in a premise found in the context", pos)
+    # A Pi variable no premise determines is a logic variable when the rule fires (as in
+    # Celf): the facts it reaches hold it until a later match instantiates it.
+    t.open_slots = tuple(missing)
 
 
 def _is_fresh_anywhere(actions: list, slot: int) -> bool:

@@ -41,6 +41,7 @@ class ConstInfo:
     pos: Pos
     definition: Optional[Node] = None
     builtin: bool = False  # predeclared by the built-in domain of numbers and strings
+    proof: bool = False  # a definition by a proof term (lambdas, monadic lets): type-checked, kept opaque
 
 
 _BUILTIN_POS = Pos("<built-in>", 1, 1)
@@ -118,6 +119,8 @@ class Elaborator:
         # application, so a persistent function is written `\!x. M` and applied as `L !a`
         # when L is a bound variable (constants and upper-case variables take `a` as `!a`)
         self.strict = strict
+        self.proof = False
+        self.usage: dict = {}
 
     # ------------------------------------------------------------ entry points
     def declare(self, d: S.Decl) -> ConstInfo:
@@ -134,19 +137,32 @@ class Elaborator:
         else:
             cls = self.neg(d.classifier)
         definition = None
+        proof = False
         if d.definition is not None:
-            _refuse_proof_terms(d.definition)
             if is_family:
+                _refuse_proof_terms(d.definition)
                 if not isinstance(d.classifier, S.TypeKw):
                     raise UnsupportedError("type abbreviations with arguments are not supported", d.pos)
                 definition = self.neg(d.definition)
+            elif _is_proof_type(cls) or _has_proof_syntax(d.definition):
+                # a proof term (Celf's objects: linear lambdas, {let {p} = M in E}, [M, N], ...):
+                # type-checked with Celf's typing and linearity, then kept as an opaque constant
+                proof = True
+                self.proof = True
+                try:
+                    self.check(d.definition, cls)
+                finally:
+                    self.proof = False
+                definition = Root(Const(d.name), ())
             else:
                 definition = self.check(d.definition, cls)
         self._solve_postponed(d.pos)
         if not is_family:
             _refuse_builtin_conclusion(cls, d.name, d.pos)
-        cls, n, definition = self._generalise(cls, d.pos, definition)
-        info = ConstInfo(d.name, Const(d.name), cls, n, is_family, d.pos, definition)
+        cls, n, definition = self._generalise(cls, d.pos, definition if not proof else None)
+        if proof:
+            definition = Root(Const(d.name), ())
+        info = ConstInfo(d.name, Const(d.name), cls, n, is_family, d.pos, definition, proof=proof)
         self.sig.consts[d.name] = info
         IMPLICIT[info.const] = n
         return info
@@ -174,6 +190,8 @@ class Elaborator:
 
     # ------------------------------------------------------------ state
     def _begin(self) -> None:
+        self.proof = False  # checking a proof term (a definition's body): linear objects allowed
+        self.usage: dict = {}  # proof variable (Param) -> [mode, times used], for linearity
         self.u = Unifier()
         self.free: dict[str, Root] = {}  # implicit (free upper-case) variables
         self.bound: list[tuple[str, Param]] = []
@@ -437,13 +455,16 @@ class Elaborator:
         if isinstance(e, S.Id):
             for n, p in reversed(self.bound):
                 if n == e.name:
+                    use = self.usage.get(p)
+                    if use is not None:
+                        use[1] += 1
                     return param_term(p), self.ptype[p]
             info = self.sig.lookup(e.name)
             if info is not None:
                 if info.is_family:
                     raise TypeError_(f"type family '{e.name}' used as a term", e.pos)
                 term, ty, xs = self._instantiate_all(info)
-                if info.definition is not None:
+                if info.definition is not None and not info.proof:
                     return (subst(info.definition, list(reversed(xs))) if xs else info.definition), ty
                 return term, ty
             if _is_upper(e.name) or e.name.startswith("_"):
@@ -477,11 +498,14 @@ class Elaborator:
                 a = self.check(e.arg, fty.dom)
                 return apply(f, (a,)), subst1(fty.body, a)
             if isinstance(fty, Imp):
-                if fty.mode != "!":
+                if fty.mode != "!" and not self.proof:
                     raise UnsupportedError(
                         "linear or affine function objects as index terms are not supported "
                         f"(applying a term of type {self._show(fty)})", e.pos)
-                a = self.check(e.arg, fty.dom)
+                if self.proof:
+                    a = self._proof_arg(e, fty)
+                else:
+                    a = self.check(e.arg, fty.dom)
                 return apply(f, (a,)), fty.body
             raise TypeError_(f"{_describe(e.fn)} is applied to an argument but its type is not a function type",
                              e.pos, [f"type: {self._show(fty)}"])
@@ -532,8 +556,205 @@ class Elaborator:
                              ty.pos)
         return self.neg(ty)
 
+    # ------------------------------------------------------------ proof terms (Celf's objects)
+    def _linear_uses(self) -> dict:
+        return {p: u[1] for p, u in self.usage.items() if u[0] != "persistent"}
+
+    def _no_linear(self, before: dict, pos: Pos, what: str) -> None:
+        """A persistent position (`!N`, the argument of `->`) may use no linear or affine variable."""
+        for p, n in self._linear_uses().items():
+            if n != before.get(p, 0):
+                raise TypeError_(f"{what} uses the {self.usage[p][0]} variable '{self._pname(p)}', "
+                                 "which a persistent position may not use", pos)
+
+    def _pname(self, p: Param) -> str:
+        for n, q in self.bound:
+            if q is p:
+                return n
+        return p.hint
+
+    def _proof_arg(self, e: S.App, fty: Imp) -> Node:
+        """The argument of an application in a proof term: `M N` for `-o`, `M @N` for `-@`,
+        `M !N` (or a plain argument of a constant) for `->`, with the linearity Celf checks."""
+        want = {"1": None, "@": "@", "!": "!"}[fty.mode]
+        if e.mark is not None and e.mark != want:
+            kind = {"1": "a linear '-o'", "@": "an affine '-@'", "!": "a persistent '->'"}[fty.mode]
+            raise TypeError_(f"the argument is marked '{e.mark}' but the function takes {kind} argument", e.arg.pos,
+                             [f"function type: {self._show(fty)}"])
+        before = self._linear_uses()
+        a = self.check(e.arg, fty.dom)
+        if fty.mode == "!":
+            self._no_linear(before, e.arg.pos, "the argument of a persistent function")
+        elif fty.mode == "@":
+            for p, n in self._linear_uses().items():
+                if n != before.get(p, 0) and self.usage[p][0] == "linear":
+                    raise TypeError_(f"the argument of an affine function uses the linear variable "
+                                     f"'{self._pname(p)}'", e.arg.pos)
+        return a
+
+    def _bind_proof_var(self, name: str, ty: Node, mode: str) -> Param:
+        p = self._open(name, ty)
+        self.usage[p] = [mode, 0]
+        return p
+
+    def _release(self, params: list, pos: Pos) -> None:
+        """Leave the scope of proof variables: a linear one must have been used exactly once,
+        an affine one at most once (Celf's linearity check)."""
+        for p in reversed(params):
+            mode, n = self.usage.pop(p)
+            name = self._pname(p)
+            if mode == "linear" and n != 1:
+                raise TypeError_(f"linearity: the linear variable '{name}' is used {n} times "
+                                 "(exactly once is required)", pos)
+            if mode == "affine" and n > 1:
+                raise TypeError_(f"linearity: the affine variable '{name}' is used {n} times "
+                                 "(at most once is allowed)", pos)
+            idx = max(i for i, (_n, q) in enumerate(self.bound) if q is p)
+            del self.bound[idx]
+
+    def _check_proof_lam(self, e: S.Expr, ty: Node) -> Node:
+        """``\\x. M`` against ``A -o B``, ``\\@x. M`` against ``A -@ B``, ``\\!x. M`` against ``A -> B``
+        or ``Pi x:A. B``; ``\\[p, q]. M`` and ``\\1. M`` against the curried premises."""
+        if isinstance(e, S.PatLam):
+            pat = e.pattern
+            if isinstance(pat, S.POne):
+                return self.check(e.body, ty)
+            if isinstance(pat, S.PTuple):
+                body = e.body
+                for item in reversed(pat.items):
+                    if isinstance(item, S.PVar):
+                        body = S.Lam(item.pos, item.name, body, item.mode)
+                    else:
+                        body = S.PatLam(item.pos, item, None, body)
+                return self.check(body, ty)
+            raise TypeError_("this lambda pattern does not match the type", e.pos, [f"type: {self._show(ty)}"])
+        mode = {"!": "persistent", "1": "linear", "@": "affine"}[ty.mode] if isinstance(ty, Imp) else "persistent"
+        if e.mode != mode:
+            mark = _LAM_MARK[mode]
+            raise TypeError_(f"a {e.mode} lambda '\\{_LAM_MARK[e.mode]}{e.var}.' is given where a {mode} function is "
+                             f"expected: Celf writes '\\{mark}{e.var}. ...'", e.pos,
+                             [f"expected: {self._show(ty)}"])
+        if e.ty is not None:
+            self._unify(ty.dom, self._lam_annotation(e), e.ty.pos, "the type of a lambda's variable")
+        p = self._bind_proof_var(e.var, ty.dom, mode)
+        if isinstance(ty, Pi):
+            body_ty = subst1(ty.body, param_term(p))
+        else:
+            body_ty = ty.body
+        body = self.check(e.body, body_ty)
+        self._release([p], e.pos)
+        self.bound.append((e.var, p))  # _close_binder pops it again
+        return Lam(self._close_binder(p, body))
+
+    def _check_monad(self, e: S.Expr, s: Node) -> Node:
+        """The inside of ``{E}`` against the positive type ``S``: lets, then a monadic object."""
+        if isinstance(e, S.Let):
+            m, mty = self.infer(e.value)
+            mty = deref(mty)
+            if not isinstance(mty, Monad):
+                raise TypeError_("the right-hand side of 'let {p} = M' must have a monadic type {S}", e.value.pos,
+                                 [f"type: {self._show(mty)}"])
+            params = self._bind_pattern(e.pattern, mty.body)
+            self._check_monad(e.body, s)
+            self._release(params, e.pos)
+            return Root(Const("{let}"), ())
+        return self._check_mon_obj(e, s)
+
+    def _bind_pattern(self, pat: S.Expr, s: Node) -> list:
+        """Bind a let pattern against the positive type it destructures: ``[p, q]`` for
+        ``S1 * S2``, ``[!x, p]`` for ``Exists x:A. S``, ``1``, ``!x`` for ``!A``, ``@x`` for
+        ``@A``, ``x`` for a linear type."""
+        s = deref(s)
+        if isinstance(pat, S.PTuple) and len(pat.items) > 2:
+            pat = S.PTuple(pat.pos, (pat.items[0], S.PTuple(pat.items[1].pos, pat.items[1:])))
+        if isinstance(s, Tensor):
+            if not isinstance(pat, S.PTuple):
+                raise TypeError_(f"the pattern does not match the type {self._show(s)} (Celf's pattern: [p, q])",
+                                 pat.pos)
+            left = self._bind_pattern(pat.items[0], s.left)
+            return left + self._bind_pattern(pat.items[1], s.right)
+        if isinstance(s, One):
+            if not isinstance(pat, S.POne):
+                raise TypeError_("the pattern does not match the type 1 (Celf's pattern: 1)", pat.pos)
+            return []
+        if isinstance(s, Exists):
+            if not isinstance(pat, S.PTuple):
+                raise TypeError_(f"the pattern does not match the type {self._show(s)} (Celf's pattern: [!x, p])",
+                                 pat.pos)
+            first = pat.items[0]
+            if not isinstance(first, S.PVar) or first.mode == "affine":
+                raise TypeError_("the witness of an Exists is bound by a pattern '!x'", first.pos)
+            p = self._bind_proof_var(first.name, s.dom, "persistent")
+            return [p] + self._bind_pattern(pat.items[1], subst1(s.body, param_term(p)))
+        want = "persistent" if isinstance(s, Bang) else "affine" if isinstance(s, Aff) else "linear"
+        body = s.body if isinstance(s, (Bang, Aff)) else s
+        if isinstance(pat, S.PVar) and pat.mode == want:
+            return [self._bind_proof_var(pat.name, body, want)]
+        shape = {"persistent": "!x", "affine": "@x", "linear": "x"}[want]
+        raise TypeError_(f"the pattern does not match the type {self._show(s)} (Celf's pattern: {shape})", pat.pos)
+
+    def _check_mon_obj(self, e: S.Expr, s: Node) -> Node:
+        """A monadic object against a positive type: ``[M, N]``, ``1``, ``!M``, ``@M``, ``[!N, M]``."""
+        s = deref(s)
+        if isinstance(e, S.Tuple) and len(e.items) > 2:
+            e = S.Tuple(e.pos, (e.items[0], S.Tuple(e.items[1].pos, e.items[1:])))
+        if isinstance(s, Tensor):
+            if not isinstance(e, S.Tuple):
+                raise TypeError_(f"expected a monadic object [M, N] of type {self._show(s)}", e.pos)
+            self._check_mon_obj(e.items[0], s.left)
+            return self._check_mon_obj(e.items[1], s.right)
+        if isinstance(s, One):
+            if not isinstance(e, S.One):
+                raise TypeError_("expected the monadic object 1", e.pos)
+            return Root(Const("{1}"), ())
+        if isinstance(s, Exists):
+            if not isinstance(e, S.Tuple):
+                raise TypeError_(f"expected a monadic object [!N, M] of type {self._show(s)}", e.pos)
+            w = e.items[0].body if isinstance(e.items[0], S.Bang) else e.items[0]
+            before = self._linear_uses()
+            n = self.check(w, s.dom)
+            self._no_linear(before, w.pos, "the witness of an Exists")
+            return self._check_mon_obj(e.items[1], subst1(s.body, n))
+        if isinstance(s, Bang):
+            if not isinstance(e, S.Bang):
+                raise TypeError_(f"expected a monadic object !M of type {self._show(s)}", e.pos)
+            before = self._linear_uses()
+            self.check(e.body, s.body)
+            self._no_linear(before, e.pos, "'!M'")
+            return Root(Const("{!}"), ())
+        if isinstance(s, Aff):
+            if not isinstance(e, S.Affine):
+                raise TypeError_(f"expected a monadic object @M of type {self._show(s)}", e.pos)
+            return self.check(e.body, s.body)
+        return self.check(e, s)
+
+    def _check_pair(self, e: S.Pair, ty: With) -> Node:
+        """``<M, N>`` against ``A & B``: both halves use the same linear variables."""
+        start = self._linear_uses()
+        self.check(e.left, ty.left)
+        after_left = self._linear_uses()
+        for p, n in start.items():
+            self.usage[p][1] = n
+        self.check(e.right, ty.right)
+        if self._linear_uses() != after_left:
+            raise TypeError_("the two halves of '<M, N>' must use the same linear variables", e.pos)
+        return Root(Const("<>"), ())
+
     def check(self, e: S.Expr, ty: Node) -> Node:
         ty = deref(ty)
+        if self.proof:
+            if isinstance(e, (S.Lam, S.PatLam)) and isinstance(ty, (Pi, Imp)):
+                return self._check_proof_lam(e, ty)
+            if isinstance(ty, Monad):
+                if not isinstance(e, S.Monad):
+                    m, got = self.infer(e)
+                    self._unify(ty, got, e.pos, "a monadic term")
+                    return m
+                return self._check_monad(e.body, ty.body)
+            if isinstance(ty, With) and isinstance(e, S.Pair):
+                return self._check_pair(e, ty)
+            if isinstance(e, (S.Let, S.Tuple, S.Monad, S.Pair)):
+                raise TypeError_(f"{_describe(e)} is given where a term of type {self._show(ty)} is expected", e.pos)
         if isinstance(e, S.Lam) and (e.ty is not None and isinstance(deref(ty), (Pi, Imp))):
             dom = self._lam_annotation(e)
             self._unify(deref(ty).dom, dom, e.ty.pos, "the type of a lambda's variable")
@@ -571,6 +792,32 @@ class Elaborator:
             raise TypeError_(f"type mismatch in the argument {what}", e.pos,
                              [f"expected: {self._show(ty)}", f"found:    {self._show(got)}"])
         return term
+
+
+def _is_proof_type(ty: Node) -> bool:
+    """Is a definition of this type a proof term (its type mentions a monad, a linear or affine
+    implication, ``&`` or ``T``) rather than an index term?"""
+    stack = [ty]
+    while stack:
+        t = stack.pop()
+        tt = type(t)
+        if tt is Monad or tt is With or tt is Top or (tt is Imp and t.mode != "!"):
+            return True
+        if tt is Pi or tt is Imp:
+            stack.append(t.body)
+    return False
+
+
+def _has_proof_syntax(e: S.Expr) -> bool:
+    stack = [e]
+    while stack:
+        x = stack.pop()
+        if isinstance(x, (S.Monad, S.Let, S.Tuple, S.PatLam, S.Pair)):
+            return True
+        for v in vars(x).values():
+            if isinstance(v, S.Node):
+                stack.append(v)
+    return False
 
 
 def _refuse_proof_terms(e: S.Expr) -> None:

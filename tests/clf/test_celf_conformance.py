@@ -10,6 +10,7 @@ Header lines (``%`` comments at the top of each file):
   of that class containing FRAGMENT, no traceback); a known deviation says
   ``% expect: unsupported LINE:COL FRAGMENT`` and ``% deviation:`` why;
 * ``% output: LINE`` a line the run must print (repeatable), ``% absent: TEXT`` text it must not;
+  ``% proof: LINE`` a line the run must print with ``--proof`` (Celf's solution term);
 * ``% seeds: 0 1 2`` run once per scheduler seed, each with the same outcome.
 """
 
@@ -31,7 +32,7 @@ EXPECT = re.compile(r"(ok|parse error|type error|mode error|query failed|unsuppo
 
 
 def header(path: Path) -> dict:
-    h: dict = {"output": [], "absent": [], "seeds": [0]}
+    h: dict = {"output": [], "absent": [], "proof": [], "seeds": [0]}
     for line in path.read_text(encoding="utf-8").splitlines():
         if not line.startswith("%"):
             break
@@ -39,7 +40,7 @@ def header(path: Path) -> dict:
         if not m:
             continue
         key, value = m[1], m[2]
-        if key in ("output", "absent"):
+        if key in ("output", "absent", "proof"):
             h[key].append(value)
         elif key == "seeds":
             h["seeds"] = [int(x) for x in value.split()]
@@ -56,7 +57,9 @@ def test_suite_covers_issue_13():
     for needed in ("lex_identifiers", "directive_sees_prefix", "query_attempts_any", "query_e_above_l",
                    "query_ignored", "exists_function_in_context", "typing_linear_lambda",
                    "typing_bound_application", "mode_implicit_and_empty", "mode_error", "pattern_exists",
-                   "pattern_pi", "lambda_annotated", "proof_term_definition"):
+                   "pattern_pi", "lambda_annotated", "proof_term_definition", "proof_term_patterns",
+                   "proof_term_linearity", "linear_premise_backward", "linear_premise_consumes",
+                   "logic_variable_in_context", "logic_variable_in_rule_head", "logic_variable_accumulator"):
         assert needed in names, needed
 
 
@@ -76,6 +79,12 @@ def test_celf_answer(path, capsys):
             assert line in out.splitlines(), (seed, line, out)
         for text in h["absent"]:
             assert text not in out, (seed, text, out)
+        if h["proof"]:
+            with pytest.raises(SystemExit):
+                main(["clf", str(path), "--seed", str(seed), "--proof"])
+            pout, _perr = capsys.readouterr()
+            for line in h["proof"]:
+                assert line in pout.splitlines(), (seed, line, pout)
         if kind == "ok":
             assert code == 0, (seed, out, err)
             continue

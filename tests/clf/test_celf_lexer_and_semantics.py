@@ -144,7 +144,9 @@ def test_run_file_on_an_empty_program_and_rules_after_the_last_directive(tmp_pat
     empty.write_text("% nothing\n")
     assert run_file(empty, emit=lambda line: None) == []
     late = tmp_path / "l.clf"
-    late.write_text("a : type. b : a -> type.\n#query * 0 * 1 a.\nr : {b X}.\n")
+    # a rule whose built-in premise's input no premise determines (a Pi variable only in the
+    # head is a logic variable, as in Celf, and accepted)
+    late.write_text("a : type. b : number -> type.\n#query * 0 * 1 a.\nr : num_lt X 1 -> {b X}.\n")
     lines = []
     with pytest.raises(UnsupportedError):
         run_file(late, emit=lines.append)

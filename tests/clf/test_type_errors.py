@@ -39,7 +39,7 @@ def test_suite_is_large_enough():
     # the kinds of error the suite must cover
     names = {p.stem for p in CASES}
     assert {"unknown_constant", "unknown_family", "family_arity", "wrong_argument_type", "const_as_family",
-            "family_as_term", "positive_outside_monad", "undetermined_pi", "duplicate", "query_count",
+            "family_as_term", "positive_outside_monad", "undetermined_builtin_input", "duplicate", "query_count",
             "exec_unbound"} <= names
 
 
