@@ -31,7 +31,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..clf.context import Context
-from ..clf.forward import _multiset_key, enabled_steps, fire
+from ..clf.forward import multiset_key, enabled_steps, fire
 from ..clf.program import Program
 from ..clf.rules import AFF, LIN, PERS
 from .graph import Interner, StateGraph
@@ -121,7 +121,7 @@ class GroundModel:
                 work += 1
                 if not work & 63:
                     self._check_budget(work)
-                key = (id(choice.template), choice.bindings, _multiset_key(choice.consumed))
+                key = (id(choice.template), choice.bindings, multiset_key(choice.consumed))
                 if key in seen_inst:
                     continue
                 seen_inst.add(key)

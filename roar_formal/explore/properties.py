@@ -52,7 +52,7 @@ class Verdict:
         return self.status == "violated"
 
 
-def _incomplete(prop: str, g: StateGraph) -> Verdict:
+def incomplete_note(prop: str, g: StateGraph) -> Verdict:
     return Verdict(prop, "incomplete",
                    f"no {prop} in {g.n_states:,} states; search incomplete ({g.stop_reason})")
 
@@ -69,7 +69,7 @@ def check_states(g: StateGraph, prop: str, bad: Callable[[int], Optional[str]]) 
             cx = Counterexample("path", g.path_to(s), final_state=s)
             return Verdict(prop, "violated", f"{why} (reached in {len(cx.prefix)} steps)", cx, {"reason": why})
     if not g.complete:
-        return _incomplete(prop, g)
+        return incomplete_note(prop, g)
     return Verdict(prop, "holds", f"no violation in {g.n_states:,} states")
 
 
@@ -95,7 +95,7 @@ def check_deadlock(g: StateGraph, accept: Optional[Callable[[int], bool]] = None
                        f"{'s' if n_dead != 1 else ''} among {g.n_states:,} states)",
                        cx, {"deadlock_states": n_dead, "final_states": n_final})
     if not g.complete:
-        return _incomplete("deadlock", g)
+        return incomplete_note("deadlock", g)
     return Verdict("deadlock", "holds", f"no deadlock in {g.n_states:,} states ({n_final} accepted final)",
                    details={"final_states": n_final})
 
@@ -103,7 +103,7 @@ def check_deadlock(g: StateGraph, accept: Optional[Callable[[int], bool]] = None
 # ---------------------------------------------------------------- livelock
 
 
-def _scc(n: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+def strongly_connected(n: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """Strongly connected component label of each node."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import connected_components
@@ -147,7 +147,7 @@ def check_livelock(g: StateGraph) -> Verdict:
     isrc, idst = src[inner], dst[inner]
     if len(isrc) == 0:
         return _no_livelock(g)
-    comp = _scc(n, isrc, idst)
+    comp = strongly_connected(n, isrc, idst)
     internal = comp[isrc] == comp[idst]
     cand_edges = np.flatnonzero(inner)[internal]
     if len(cand_edges) == 0:
@@ -168,7 +168,7 @@ def check_livelock(g: StateGraph) -> Verdict:
     if best is None:
         return _no_livelock(g, unfair=True)
     _, c, entry, edges_c, always = best
-    cycle = _tour(g, entry, edges_c, always, src, dst, grp)
+    cycle = cycle_tour(g, entry, edges_c, always, src, dst, grp)
     cx = Counterexample("lasso", g.path_to(entry), cycle, final_state=entry)
     names = sorted(g.groups.names[x] for x in set(grp[edges_c].tolist()))
     return Verdict("livelock", "violated",
@@ -179,13 +179,13 @@ def check_livelock(g: StateGraph) -> Verdict:
 
 def _no_livelock(g: StateGraph, unfair: bool = False) -> Verdict:
     if not g.complete:
-        return _incomplete("livelock", g)
+        return incomplete_note("livelock", g)
     extra = " (cycles without progress exist but are all unfair)" if unfair else ""
     return Verdict("livelock", "holds", f"no fair livelock in {g.n_states:,} states{extra}",
                    details={"unfair_cycles": unfair})
 
 
-def _tour(g: StateGraph, entry: int, edges_c: np.ndarray, required: set, src, dst, grp) -> list[int]:
+def cycle_tour(g: StateGraph, entry: int, edges_c: np.ndarray, required: set, src, dst, grp) -> list[int]:
     """A fair cycle from ``entry`` inside the component: start from any cycle, then splice
     in detours until every group enabled all along it either moves or meets a state
     where it is disabled (terminates: each detour fixes one group for good)."""

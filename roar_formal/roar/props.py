@@ -728,7 +728,7 @@ def _concat(a, b):
 
 def check_always(g, prop: str, holds: np.ndarray, why: Callable[[int], str]):
     """``always P``: the shortest path to a state where P is false (states in BFS order)."""
-    from ..explore.properties import Counterexample, Verdict, _incomplete
+    from ..explore.properties import Counterexample, Verdict, incomplete_note
     bad = np.flatnonzero(~holds[:g.n_states])
     if len(bad):
         s = int(bad[0])
@@ -736,7 +736,7 @@ def check_always(g, prop: str, holds: np.ndarray, why: Callable[[int], str]):
         reason = why(s)
         return Verdict(prop, "violated", f"{reason} (reached in {len(cx.prefix)} steps)", cx, {"reason": reason})
     if not g.complete:
-        return _incomplete(prop, g)
+        return incomplete_note(prop, g)
     return Verdict(prop, "holds", f"no violation in {g.n_states:,} states")
 
 
@@ -750,7 +750,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     minimises the path's length (to the seed by the BFS parent pointers, then inside the region).
     Only expanded states are used, so a violation found in a partial graph is real. ``cut`` marks
     states without successors that are not the end of a run (a robot-backed search's horizon)."""
-    from ..explore.properties import Counterexample, Verdict, _incomplete, _scc, _tour, fair_components
+    from ..explore.properties import Counterexample, Verdict, incomplete_note, strongly_connected, cycle_tour, fair_components
     n = g.n_states
     a = g.arrays()
     src, dst, grp = a["src"], a["dst"], a["group"]
@@ -760,7 +760,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     seeds = np.flatnonzero(seeds[:n] & ~target)
     if len(seeds) == 0:
         if not g.complete:
-            return _incomplete(prop, g)
+            return incomplete_note(prop, g)
         return Verdict(prop, "holds", holds_text)
     # multi-source shortest paths through non-target states (unit steps, seeds start at their depth)
     order = np.argsort(src, kind="stable")
@@ -794,7 +794,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     inner = region[src] & region[dst] & expanded[src] & expanded[dst]
     isrc, idst = src[inner], dst[inner]
     if len(isrc):
-        comp = _scc(n, isrc, idst)
+        comp = strongly_connected(n, isrc, idst)
         internal = comp[isrc] == comp[idst]
         cand_edges = np.flatnonzero(inner)[internal]
         if len(cand_edges):
@@ -808,7 +808,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
                             (cand_edges[ci == c], set(np.flatnonzero(always[c]).tolist())))
     if best is None:
         if not g.complete:
-            return _incomplete(prop, g)
+            return incomplete_note(prop, g)
         return Verdict(prop, "holds", holds_text)
     _, kind, s, extra = best
     tail = []
@@ -824,7 +824,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
         return Verdict(prop, "violated", f"{reason} (reached in {len(prefix)} steps)", cx,
                        {"reason": reason, "seed": u})
     edges_c, req = extra
-    cycle = _tour(g, s, edges_c, req, src, dst, grp)
+    cycle = cycle_tour(g, s, edges_c, req, src, dst, grp)
     cx = Counterexample("lasso", prefix, cycle, final_state=s)
     reason = why_cycle(s, len(cycle))
     names = sorted({g.groups.names[int(grp[e])] for e in cycle})
@@ -874,7 +874,7 @@ class SpecChecks:
         """Does the job check a predicate or a temporal property in the spec's terms? Partial-order
         reduction is not used then. (Livelock progress predicates are no obstacle: a fair cycle of
         the reduced graph is one of the system, its states are real, and a "holds" under weak
-        fairness is confirmed by an unreduced search, explore/check.py ``_search``.)"""
+        fairness is confirmed by an unreduced search, verify/check.py ``_search``.)"""
         return bool(self.always or self.never or self.never_steps or set(self.props.check) & self.handles)
 
     @property
@@ -1004,8 +1004,8 @@ class SpecChecks:
         if by_state is not None and (by_state.status == "violated" or not g.complete):
             return by_state
         if not g.complete:
-            from ..explore.properties import _incomplete
-            return _incomplete("invariant", g)
+            from ..explore.properties import incomplete_note
+            return incomplete_note("invariant", g)
         return Verdict("invariant", "holds", f"no violation in {g.n_states:,} states and {g.n_edges:,} steps")
 
     def _eventually(self, p, g, views, f: Formula, leads: Optional[Formula]):

@@ -27,6 +27,7 @@ from ..clf.terms import Const, Root, const, num_term, num_value, string_term, st
 from ..errors import RoarError
 from .compile import CompiledModel, num_lit
 from .functional import Outcome, Registry
+from .pretty import string_literal
 
 __all__ = ["Fault", "RoarEvent", "RunResult", "run_model", "parse_fault", "value_of", "Values", "Narrator",
            "Resolver", "collect_result", "list_items", "format_value", "describe_ec"]
@@ -508,7 +509,7 @@ def format_value(v) -> str:
         except RoarError:
             return repr(float(v))
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        return string_literal(v)
     if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque":
         return f"<opaque {v[1]}>"
     if isinstance(v, (tuple, list)):

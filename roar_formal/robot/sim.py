@@ -68,8 +68,8 @@ class CallRecord:
     covering: list = field(default_factory=list)   # every declared outcome that covers it
 
     def as_json(self) -> dict:
-        from .activity import _jsonable
-        return {"n": self.n, "function": self.function, "agent": self.agent, "args": _jsonable(self.args),
+        from .activity import jsonable
+        return {"n": self.n, "function": self.function, "agent": self.agent, "args": jsonable(self.args),
                 "started": round(self.t_start, 4), "ended": None if self.t_end is None else round(self.t_end, 4),
                 "result": None if self.result is None else self.result.as_json(), "forced": self.forced,
                 "outcome": self.outcome, "covering": self.covering}

@@ -62,7 +62,7 @@ class _Setup:
 
     def __init__(self, cls: type["RoarMachine"]):
         from ..clf.signature import ExecDirective
-        from ..explore.check import make_never
+        from ..verify.check import make_never
         from ..explore.system import Options
         from ..roar.explore import PROGRESS_RULES, RoarSystem, sequential_pairs
         spec = cls.spec

@@ -9,9 +9,9 @@ from hypothesis import given, settings, strategies as st
 
 from roar_formal.cli import main
 from roar_formal.clf.program import Program
-from roar_formal.explore.check import run_job
+from roar_formal.verify.check import run_job
 from roar_formal.explore.ground import GroundExplorer, GroundModel
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.jobs import load_job
 from roar_formal.explore.properties import check_deadlock, check_livelock
 from roar_formal.explore.search import Budget, Explorer
 from roar_formal.explore.system import ClfSystem, Options

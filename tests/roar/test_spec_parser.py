@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 from roar_formal.errors import RoarError, SyntaxError_
 from roar_formal.roar import ast as a
-from roar_formal.roar.parser import (hyper_compat_warnings, load_spec, parse_constraint, parse_expr,
-                                     parse_recipes, parse_roar, parse_task)
+from roar_formal.roar.parser import hyper_compat_warnings, parse_constraint, parse_expr, parse_recipes, parse_roar, parse_task
+from roar_formal.roar.spec import load_spec
 from roar_formal.roar.pretty import format_expr, format_spec, format_stmt, hyper_files
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from roar_formal.robot.commands import prepare
+from roar_formal.robot.setup import prepare
 from roar_formal.robot.sim import simulate
 from roar_formal.trace.format import read_trace
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from roar_formal.explore.check import run_job, save_counterexample
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.check import run_job, save_counterexample
+from roar_formal.verify.jobs import load_job
 from roar_formal.roar.explore import path_events
 from roar_formal.tca.check import check_events, check_trace
 from roar_formal.tca.roar_runs import task_tree_events

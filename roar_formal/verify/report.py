@@ -4,16 +4,17 @@
 same :func:`counterexample_report`, so what a test asserts, what a CI log shows and
 what a picture draws agree. For jobs on a ROAR spec the report is at the ROAR level
 (per step the agent, its events and the variables it changed; the final state per
-agent; at a deadlock the blocked activities and the wait-for cycle); ROAR modules are
-imported inside functions only, so ``explore`` does not depend on ``roar`` at import.
+agent; at a deadlock the blocked activities and the wait-for cycle). The printed form
+is a :class:`~roar_formal.lines.Lines` document: the command line shows it in colour,
+the testing API as plain text.
 """
 
 from __future__ import annotations
 
-from rich.console import Console
-from rich.markup import escape
+from ..lines import Lines
+from .check import counterexample_steps
 
-__all__ = ["counterexample_report", "print_counterexample"]
+__all__ = ["counterexample_report", "counterexample_lines"]
 
 
 def counterexample_report(res, prop: str) -> dict:
@@ -23,7 +24,6 @@ def counterexample_report(res, prop: str) -> dict:
     ``group``, ``rule``, ``agent``, ``events``, ``changes``), ``requests`` (label ->
     agent, constraint; ROAR only), ``final`` (per-agent table; ROAR only, else the facts),
     ``deadlock`` (blocked activities, wait-for edges and cycle; deadlocks on a spec only)."""
-    from .check import counterexample_steps
     v = res.verdicts[prop]
     cx = v.counterexample
     cache = getattr(res, "_cx_reports", None)
@@ -64,62 +64,63 @@ def counterexample_report(res, prop: str) -> dict:
     return out
 
 
-def print_counterexample(console: Console, res, prop: str, verbose: bool = False) -> None:
-    """Print the counterexample of ``prop`` as ``roar-verify check`` does (after the verdict line)."""
+def counterexample_lines(res, prop: str, verbose: bool = False) -> Lines:
+    """The counterexample of ``prop`` as ``roar-verify check`` prints it (after the verdict line)."""
+    out = Lines()
     v = res.verdicts[prop]
     rep = counterexample_report(res, prop)
     is_roar = getattr(res, "roar", None) is not None
     steps = rep["steps"]
-    from .check import counterexample_steps
     raw = counterexample_steps(res.graph, v, res) if verbose and not is_roar else None
     for i, s in enumerate(steps, 1):
         if s["loop"] and (i == 1 or not steps[i - 2]["loop"]):
-            console.print("    -- cycle (repeats forever) --", style="yellow")
+            out.add("    -- cycle (repeats forever) --", style="yellow", wrap=True)
         if not is_roar:
-            line = f"    {i:>3}. \\[{escape(s['group'])}] {escape(s['rule'])}"
+            line = f"    {i:>3}. [{s['group']}] {s['rule']}"
             if verbose:
                 r = raw[i - 1]
-                line += f"  {escape(', '.join(r.get('consumed', [])))} -> {escape(', '.join(r.get('produced', [])))}"
-            console.print(line, markup=True)
+                line += f"  {', '.join(r.get('consumed', []))} -> {', '.join(r.get('produced', []))}"
+            out.add(line, wrap=True)
             continue
-        rule = f"  [dim]({escape(s['rule'])})[/]" if verbose else ""
+        rule = [(f"  ({s['rule']})", "dim")] if verbose else []
         shown = [ev for ev in s["events"] if ev["kind"] != "write"]
         for ev in shown:
-            console.print(f"    {i:>3}. {escape(ev['agent']):<12} {escape(ev['text'])}{rule}", markup=True)
+            out.add(f"    {i:>3}. {ev['agent']:<12} {ev['text']}", *rule, wrap=True)
         for ch in s["changes"]:
-            lead = f"    {i:>3}. {escape(ch['agent']):<12}" if not shown else " " * 21
-            console.print(f"{lead} {escape(ch['var'])}: {escape(ch['old'])} -> {escape(ch['new'])}{rule}",
-                          markup=True)
+            lead = f"    {i:>3}. {ch['agent']:<12}" if not shown else " " * 21
+            out.add(f"{lead} {ch['var']}: {ch['old']} -> {ch['new']}", *rule, wrap=True)
         if verbose and not shown and not s["changes"]:
-            console.print(f"    {i:>3}. [dim]\\[{escape(s['group'])}] {escape(s['rule'])}[/]", markup=True)
+            out.add(f"    {i:>3}. ", (f"[{s['group']}] {s['rule']}", "dim"), wrap=True)
     if is_roar:
-        _print_roar_final(console, rep, v.counterexample.kind)
+        out.extend(_roar_final_lines(rep, v.counterexample.kind))
         robot = getattr(res, "robot", None)
         if robot is not None:   # where the robot is, and when
             node = robot.explorer.states[v.counterexample.final_state].node
             x, y, th = node.pose
             armed = f"; faults armed: {', '.join(sorted(node.armed))}" if node.armed else ""
-            console.print(f"      robot    t = {node.time:.2f} s, at ({x:.2f}, {y:.2f}), heading "
-                          f"{th * 57.29577951308232:.0f} deg{escape(armed)}", markup=True)
+            out.add(f"      robot    t = {node.time:.2f} s, at ({x:.2f}, {y:.2f}), heading "
+                    f"{th * 57.29577951308232:.0f} deg{armed}", wrap=True)
     elif v.counterexample.kind == "path" and rep["final"] is not None:
-        console.print("    final state: " + "; ".join(rep["final"]["facts"]))
+        out.add("    final state: " + "; ".join(rep["final"]["facts"]), wrap=True)
     for pic in getattr(res, "pictures", {}).get(prop, ()):
         if isinstance(pic, str):
-            console.print(f"    {pic}", style="yellow", soft_wrap=True)
+            out.add(f"    {pic}", style="yellow")
         else:
-            console.print(f"    picture: {pic}")
+            out.add(f"    picture: {pic}", wrap=True)
     saved = getattr(res, "saved", {}).get(prop)
     if saved:
         job = res.job
         on_robot = f" --on-robot {job.robot.scenario}" if getattr(job, "robot", None) is not None else ""
-        console.print(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model}"
-                      f"{on_robot})")
+        out.add(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model}"
+                f"{on_robot})", wrap=True)
+    return out
 
 
-def _print_roar_final(console: Console, rep: dict, shape: str) -> None:
+def _roar_final_lines(rep: dict, shape: str) -> Lines:
     """The final state as a per-agent table, then the deadlock's wait-for cycle."""
+    out = Lines()
     head = "final state" if shape == "path" else "state where the cycle starts"
-    console.print(f"    {head}:")
+    out.add(f"    {head}:", wrap=True)
     rows = rep["final"]
     width = max([len(a) for a in rows] + [5])
     for agent, row in rows.items():
@@ -134,20 +135,21 @@ def _print_roar_final(console: Console, rep: dict, shape: str) -> None:
             lines.append(f"{a['status']}: {a['task']}.{a['recipe']}{handles}{what}")
         for k, text in enumerate(lines):
             name = agent if k == 0 else ""
-            console.print(f"      {escape(name):<{width}}  {escape(text)}", markup=True, soft_wrap=True)
+            out.add(f"      {name:<{width}}  {text}")
     dl = rep.get("deadlock")
     if dl is None:
-        return
+        return out
     if dl["cycle"]:
         cyc = dl["cycle"]
-        console.print(f"    wait-for cycle: {' -> '.join(cyc + [cyc[0]])}", style="red")
+        out.add(f"    wait-for cycle: {' -> '.join(cyc + [cyc[0]])}", style="red", wrap=True)
         pairs = list(zip(cyc, cyc[1:] + cyc[:1]))
         for a, b in pairs:
             why = "; ".join(e["why"] for e in dl["wait_for"] if e["from"] == a and e["to"] == b)
-            console.print(f"      {escape(a)} waits for {escape(b)}: {escape(why)}", markup=True, soft_wrap=True)
+            out.add(f"      {a} waits for {b}: {why}")
     else:
-        console.print("    no wait-for cycle between agents: the blocked activities wait for no agent "
-                      "(a request left unhandled, or a wait on the agent's own variables)", style="red")
+        out.add("    no wait-for cycle between agents: the blocked activities wait for no agent "
+                "(a request left unhandled, or a wait on the agent's own variables)", style="red", wrap=True)
+    return out
 
 
 def wait_for_pairs(rep: dict) -> list[tuple[str, str]]:

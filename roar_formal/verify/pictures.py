@@ -1,6 +1,6 @@
 """Pictures of counterexamples: a message sequence chart (PNG, SVG) and the state graph (DOT).
 
-The chart is drawn from :func:`~roar_formal.explore.report.counterexample_report`, so it
+The chart is drawn from :func:`~roar_formal.verify.report.counterexample_report`, so it
 shows what the text shows: one lifeline per agent, each constraint sent as an arrow
 from its sender to the agent that handles it, state changes, primitive calls and
 variable changes as notes, and, at a deadlock, the wait-for cycle as red arrows.

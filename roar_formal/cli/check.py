@@ -13,9 +13,8 @@ from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
-from ..console import make_console, styled
 from ..errors import RoarError
-from .report import counterexample_report, print_counterexample
+from .console import make_console, show, styled
 
 
 _STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
@@ -54,8 +53,8 @@ def register(app: typer.Typer) -> None:
         ran out of budget on a property the job expects nothing of (no verdict).
         """
         import math
-        from .check import run_job, save_counterexample
-        from .jobs import find_jobs, is_model_path, job_for_model, load_job
+        from ..verify.check import run_job, save_counterexample
+        from ..verify.jobs import find_jobs, is_model_path, job_for_model, load_job
 
         console = make_console(stderr=as_json)
         props = [x.strip() for p in prop for x in p.split(",") if x.strip()]
@@ -67,7 +66,7 @@ def register(app: typer.Typer) -> None:
             raise RoarError(f"--max-states {max_states}: expected a positive number of states")
         if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
             raise RoarError(f"--max-seconds {max_seconds}: expected a positive, finite number of seconds")
-        from .pictures import check_output_folder, write_pictures
+        from ..verify.pictures import check_output_folder, write_pictures
         outputs = [(png, "--png"), (svg, "--svg"), (dot, "--dot"), (html, "--html")]
         if not no_traces and traces != Path("roar-traces"):   # the default is checked when written
             outputs.append((traces, "--traces"))
@@ -124,7 +123,7 @@ def register(app: typer.Typer) -> None:
             if not as_json:
                 _print_result(console, res, verbose)
         if html is not None:
-            from .html import write_html_report
+            from ..verify.html import write_html_report
             page = write_html_report(html, results, [_json(r) for r in results], tuple(paths) + tuple(files))
             if not as_json:
                 console.print(f"HTML report: {page}", soft_wrap=True)
@@ -170,7 +169,7 @@ def register(app: typer.Typer) -> None:
         from ..trace.format import read_trace
         head = read_trace(trace)[0]
         if on_robot is not None or head.get("kind") == "roar-robot-run" or head.get("robot") is not None:
-            from ..robot.commands import replay_robot
+            from .robot import replay_robot
             if loops < 1 or loops > 1000:
                 raise RoarError(f"--loops {loops}: expected 1 to 1000")
             code = replay_robot(trace, model, on_robot, seed, fault, loops, png, functional, force)
@@ -178,7 +177,7 @@ def register(app: typer.Typer) -> None:
                 raise typer.Exit(code)
             return
         from ..clf.query import show_context, with_big_stack
-        from ..trace.replay import replay
+        from ..verify.replay import replay
 
         console = make_console()
 
@@ -202,6 +201,7 @@ def register(app: typer.Typer) -> None:
 
 
 def _print_result(console: Console, res, verbose: bool) -> None:
+    from ..verify.report import counterexample_lines
     head = "[green]ok[/]" if res.ok else "[red]UNEXPECTED[/]"  # printed with markup=True
     g = res.graph
     console.print(f"{head} [bold]{escape(res.job.name)}[/]  ({g.n_states:,} states, {g.n_edges:,} transitions, "
@@ -212,7 +212,7 @@ def _print_result(console: Console, res, verbose: bool) -> None:
     for p, v in res.verdicts.items():
         console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}", markup=True)
         if v.counterexample is not None:
-            print_counterexample(console, res, p, verbose)
+            show(console, counterexample_lines(res, p, verbose))
     if robot is not None and robot.comparison:
         console.print("  abstract model vs robot:")
         for p, a, r, why in robot.comparison:
@@ -247,7 +247,8 @@ def _summary(console: Console, results) -> None:
 
 
 def _json(r) -> dict:
-    from .check import counterexample_steps
+    from ..verify.check import counterexample_steps
+    from ..verify.report import counterexample_report
 
     out = {"job": r.job.name, "file": str(r.job.path), "model": str(r.job.model if not r.job.is_roar else r.job.spec),
            "ok": r.ok,

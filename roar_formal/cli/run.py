@@ -10,37 +10,8 @@ from typing import Optional
 import typer
 from rich.markup import escape
 
-from ..console import make_console
+from .console import make_console, show
 from ..errors import RoarError
-
-
-def functional_module(spec_path: Path, given: Optional[Path]) -> Optional[Path]:
-    """The functional-layer module of a spec (``--functional FILE`` or the one next to it), or None."""
-    from .functional import find_module
-    return find_module(spec_path, given)
-
-
-def load_registry(path: Optional[Path]):
-    """Import a functional-layer module and build its registry (``registry()``, or ``REGISTRY``)."""
-    if path is None:
-        return None
-    from .functional import import_module
-    mod = import_module(path)
-    make = getattr(mod, "registry", None)
-    if callable(make):
-        try:
-            reg = make()
-        except RoarError:
-            raise
-        except Exception as exc:
-            raise RoarError(f"{path}: registry() failed: {type(exc).__name__}: {exc}") from None
-    else:
-        reg = getattr(mod, "REGISTRY", None)
-    from .functional import Registry
-    if not isinstance(reg, Registry):
-        raise RoarError(f"{path}: a functional-layer module defines registry() returning a Registry "
-                        f"(roar_formal.roar.functional.Registry)")
-    return reg
 
 
 def register(app: typer.Typer) -> None:
@@ -65,9 +36,11 @@ def register(app: typer.Typer) -> None:
 
         Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
         """
-        from .compile import compile_spec
-        from .parser import load_spec
-        from .run import parse_fault, run_model
+        from ..roar.functional import functional_module, load_registry
+        from ..roar.traces import jsonable, write_run_trace
+        from ..roar.compile import compile_spec
+        from ..roar.spec import load_spec
+        from ..roar.run import parse_fault, run_model
         faults = [parse_fault(f) for f in fault]
         spec_ast = load_spec(spec)
         reg = load_registry(functional_module(spec, functional))
@@ -80,14 +53,15 @@ def register(app: typer.Typer) -> None:
         res = run_model(model, seed=seed, max_steps=max_steps, registry=reg, faults=faults, fair=fair)
         rules = [s[0] for s in res.steps]
         if not as_json:   # the one step table of run, simulate and replay (trace/render.py)
-            from ..trace.render import event_rows, print_events
-            print_events(console, event_rows(res.events, rules=rules), verbose=verbose)
+            from ..trace.render import event_lines, event_rows
+            show(console, event_lines(event_rows(res.events, rules=rules), verbose=verbose))
         if trace is not None:
-            _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault))
+            _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault,
+                                                   functional_module(spec, functional)))
         if as_json:
             print(json.dumps({"spec": str(spec), "request": request, "seed": seed, "faults": fault,
                               "outcome": res.outcome, "quiescent": res.quiescent, "clf_steps": len(res.steps),
-                              "error_context": res.error_context, "final": {k: _jsonable(v) for k, v in res.final.items()},
+                              "error_context": res.error_context, "final": {k: jsonable(v) for k, v in res.final.items()},
                               "events": [dict(step=e.step, **e.as_json()) for e in res.events]}, indent=2))
         else:
             style = "green" if res.ok else "red"
@@ -112,10 +86,11 @@ def register(app: typer.Typer) -> None:
 
         Primitives become their declared outcome rules, so `roar-verify clf` runs the result.
         """
+        from ..roar.functional import functional_module, load_registry
         from ..trace.format import write_atomic
-        from .compile import compile_spec
-        from .parser import load_spec
-        from .ast import walk
+        from ..roar.compile import compile_spec
+        from ..roar.spec import load_spec
+        from ..roar.ast import walk
         reg = load_registry(functional_module(spec, functional))
         spec_ast = load_spec(spec)
         model = compile_spec(spec_ast, request, registry=reg, functional="abstract")
@@ -136,32 +111,3 @@ def _writing(path: Path, write) -> None:
         write()
     except OSError as exc:
         raise RoarError(f"{path}: cannot write: {exc.strerror or exc}") from None
-
-
-def _jsonable(v):
-    from fractions import Fraction
-    if isinstance(v, Fraction):
-        return float(v)
-    if isinstance(v, tuple):
-        return [_jsonable(x) for x in v]
-    return v
-
-
-def write_run_trace(path: Path, res, spec, request: str, seed: int, faults) -> None:
-    """The run as a JSON Lines trace (trace/format.py): one line per CLF step, with its ROAR events."""
-    from ..trace.format import write_trace
-    by_step: dict[int, list] = {}
-    for e in res.events:
-        by_step.setdefault(e.step, []).append(e.as_json())
-    steps = []
-    for i, (rule, consumed, produced) in enumerate(res.steps, 1):
-        evs = by_step.get(i)
-        steps.append({"rule": rule, "consumed": consumed, "produced": produced,
-                      "event": (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None,
-                      "loop": False})
-    from .explore import sequential_pairs
-    header = {"kind": "roar-run", "seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text]
-                                                for p in sequential_pairs(res.model)],
-              "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
-              "outcome": res.outcome, "requests": res.requests}
-    write_trace(path, header, steps)

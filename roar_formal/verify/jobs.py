@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from ..errors import Pos, RoarError
-from .search import Budget
+from ..explore.search import Budget
 
 PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant",
               "mission-completion", "mission-failure")
