@@ -149,6 +149,9 @@ def register(app: typer.Typer) -> None:
                  "functional-layer module is found next to it), or the .clf program. Required: a trace's own "
                  "paths are never opened (docs/trust.md)."),
         states: bool = typer.Option(False, "--states", help="Print the whole state after every step."),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="Show each step's CLF rule and facts too."),
+        interactive: bool = typer.Option(False, "--interactive", "-i",
+                                         help="Step through the trace: next, back, jump, state, agent, end, quit."),
         on_robot: Optional[Path] = typer.Option(None, "--on-robot", help="Drive the reference robot of this "
                                                 "scenario through the counterexample (needs --model SPEC)."),
         seed: int = typer.Option(0, "--seed", help="With --on-robot: the robot's seed."),
@@ -162,6 +165,9 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Step through a trace on the engine, checking that every step is enabled.
 
+        On a spec the steps print as ROAR events and variable changes (CLF with -v), then the
+        final per-agent state; the trace's claim is confirmed on the model (a deadlock is still a
+        deadlock, a cycle closes, the sequential-achievement pair is still broken): exit 1 if not.
         The model comes from --model, never from the trace: a trace is data (docs/trust.md).
         A robot trace (from `simulate --trace`) replays on the compiled model of the spec given with
         --model; a counterexample replays on the robot with --on-robot SCENARIO --model SPEC.
@@ -176,28 +182,92 @@ def register(app: typer.Typer) -> None:
             if code:
                 raise typer.Exit(code)
             return
-        from ..clf.query import show_context, with_big_stack
-        from ..verify.replay import replay
+        from ..clf.query import with_big_stack
+        from ..verify.replay import replay_trace
+        from ..verify.report import replay_state_lines, replay_step_lines
 
         console = make_console()
-
-        def on_step(i, rec, state):
-            loop = " (cycle)" if rec.get("loop") else ""
-            console.print(f"[bold]{i:>4}.[/] {escape(rec['rule'])} [dim]\\[{escape(str(rec['group']))}]"
-                          f"{loop}[/]  {escape(', '.join(rec['consumed']))} -> "
-                          f"{escape(', '.join(rec['produced']))}", markup=True)
-            if states:
-                for line in show_context(state):
-                    console.print(f"        {line}")
-
-        def run():
-            return replay(trace, on_step, model, functional=functional, force=force)
-
-        res = with_big_stack(run)
-        for note in res.notes:
+        rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
+        for note in rep.result.notes:
             console.print(f"note: {note}", style="yellow")
-        tail = " and the cycle closes" if res.cycle_closes else ""
-        console.print(f"replayed {res.steps} step{'s' if res.steps != 1 else ''}{tail}", style="green")
+        n = len(rep.steps)
+        if interactive:
+            _interactive_replay(console, rep, verbose)
+        else:
+            for i in range(1, n + 1):
+                show(console, replay_step_lines(rep, i, verbose))
+                if states:
+                    show(console, replay_state_lines(rep, i))
+            if rep.compiled is not None and not states:
+                show(console, replay_state_lines(rep, n))
+        tail = " and the cycle closes" if rep.result.cycle_closes else ""
+        console.print(f"replayed {n} step{'s' if n != 1 else ''}{tail}: every step is a step of the model",
+                      style="green")
+        if rep.confirmed is False:
+            console.print(f"NOT CONFIRMED: {rep.confirmation}", style="red")
+            raise typer.Exit(1)
+        console.print(("confirmed: " if rep.confirmed else "") + rep.confirmation,
+                      style="green" if rep.confirmed else "")
+
+
+_REPLAY_HELP = ("commands: Enter or n (next step), b (back), j N (jump to step N), s (state), "
+                "a AGENT (one agent's row), e (the end), q (quit), h (this help)")
+
+
+def _interactive_replay(console: Console, rep, verbose: bool) -> None:
+    """Step through a replayed trace: the state is always the one after the shown step."""
+    import sys
+    from ..verify.report import replay_state_lines, replay_step_lines
+
+    n = len(rep.steps)
+    i = 0
+    console.print(f"{n} steps; {_REPLAY_HELP}", style="dim")
+    while True:
+        try:
+            console.print(f"[{i}/{n}]> ", end="")
+            line = sys.stdin.readline()
+        except KeyboardInterrupt:
+            console.print()
+            return
+        if not line:   # end of input
+            console.print()
+            return
+        cmd, _, arg = line.strip().partition(" ")
+        if cmd in ("", "n"):
+            if i >= n:
+                console.print("at the end of the trace", style="yellow")
+                continue
+            i += 1
+            show(console, replay_step_lines(rep, i, verbose, always=True))
+        elif cmd == "b":
+            if i == 0:
+                console.print("at the start of the trace", style="yellow")
+                continue
+            i -= 1
+            console.print(f"back to the state after step {i}" if i else "back to the start")
+        elif cmd == "j":
+            if not arg.strip().isdigit() or not 0 <= int(arg) <= n:
+                console.print(f"j N: N from 0 to {n}", style="yellow")
+                continue
+            i = int(arg)
+            if i:
+                show(console, replay_step_lines(rep, i, verbose, always=True))
+        elif cmd == "e":
+            i = n
+            show(console, replay_step_lines(rep, i, verbose, always=True))
+        elif cmd == "s":
+            show(console, replay_state_lines(rep, i))
+        elif cmd == "a":
+            if not arg.strip():
+                console.print("a AGENT: name an agent", style="yellow")
+                continue
+            show(console, replay_state_lines(rep, i, arg.strip()))
+        elif cmd == "q":
+            return
+        elif cmd in ("h", "?", "help"):
+            console.print(_REPLAY_HELP)
+        else:
+            console.print(f"unknown command {cmd!r}; {_REPLAY_HELP}", style="yellow")
 
 
 def _print_result(console: Console, res, verbose: bool) -> None:

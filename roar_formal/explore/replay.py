@@ -32,6 +32,9 @@ class ReplayResult:
     states: list[Context]
     cycle_closes: Optional[bool]  # None when the trace is not a lasso
     notes: list[str] = field(default_factory=list)  # e.g. no fingerprint recorded, or replayed despite one
+    engine_steps: list = field(default_factory=list, repr=False)  # the engine's steps, in order
+    records: list[dict] = field(default_factory=list, repr=False)  # each step as the engine took it
+    system: Optional[ClfSystem] = field(default=None, repr=False)   # the system replayed on
 
 
 _PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
@@ -54,17 +57,23 @@ def start_index(path, header: dict) -> int:
 
 def replay_steps(path, program: Program, start: int, steps: list[dict],
                  on_step: Optional[Callable[[int, dict, Context], None]] = None,
-                 notes: Optional[list[str]] = None) -> ReplayResult:
+                 notes: Optional[list[str]] = None,
+                 make_system: Optional[Callable[[Program, Context], ClfSystem]] = None) -> ReplayResult:
     """Replay the recorded ``steps`` of the trace at ``path`` on ``program`` from its
     ``start``-th ``#exec`` directive. ``on_step(i, record, state)`` sees each step as the engine
-    took it (rule, group, consumed, produced come from the engine, not from the file)."""
+    took it (rule, group, consumed, produced come from the engine, not from the file).
+    ``make_system`` builds the system to step (a front end's, with its monitors); by default the
+    engine's plain :class:`ClfSystem`."""
     notes = notes if notes is not None else []
     execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
     if start > len(execs):
         raise RoarError(f"{path}: start #{start} but the model has {len(execs)} #exec directive(s)")
-    system = ClfSystem(program, program.start_context(execs[start - 1].start), Options())
+    begin = program.start_context(execs[start - 1].start)
+    system = make_system(program, begin) if make_system is not None else ClfSystem(program, begin, Options())
     state = system.initial()
     states = [state]
+    taken_steps: list = []
+    records: list[dict] = []
     loop_start: Optional[Context] = None
     names: dict = {}  # fresh name in the trace -> fresh name in this replay (a bijection)
     for rec in steps:
@@ -93,17 +102,19 @@ def replay_steps(path, program: Program, start: int, steps: list[dict],
                        "state: " + "; ".join(show_context(state))])
         state = nxt.state
         states.append(state)
+        taken_steps.append(nxt.step)
+        d = system.describe_step(nxt.step)
+        taken = {"step": len(states) - 1, "rule": nxt.label, "group": nxt.group,
+                 "consumed": d["consumed"], "produced": d["produced"], "loop": bool(rec.get("loop"))}
+        records.append(taken)
         if on_step is not None:
-            d = system.describe_step(nxt.step)
-            taken = {"step": len(states) - 1, "rule": nxt.label, "group": nxt.group,
-                     "consumed": d["consumed"], "produced": d["produced"], "loop": bool(rec.get("loop"))}
             on_step(len(states) - 1, taken, state)
     closes = None
     if loop_start is not None:
         closes = canonical_key(loop_start) == canonical_key(state)
         if not closes:
             raise RoarError(f"{path}: the lasso's cycle does not return to the state where it started")
-    return ReplayResult(len(steps), states, closes, notes)
+    return ReplayResult(len(steps), states, closes, notes, taken_steps, records, system)
 
 
 _FRESH = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")

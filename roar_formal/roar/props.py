@@ -422,65 +422,68 @@ class View:
 def step_events(model, step) -> frozenset:
     """The events of an engine step the property language names: a primitive starting (a ``pending``
     fact produced) or ending (one consumed), a constraint sent (a new ``rq`` fact)."""
-    from ..clf.terms import Const, Root
-
-    def h(t):
-        return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
+    from . import vocabulary as V
+    h = V.head_name
     out = set()
     for part in (getattr(step, "parts", None) or (step,)):
         consumed = [f for _m, f in part.consumed]
-        old_reqs = {f.args[0] for f in consumed if h(f) == "rq"}
+        old_reqs = {V.rq(f).request for f in consumed if h(f) == V.RQ}
         for _m, f in part.produced:
             k = h(f)
-            if k == "pending" and h(f.args[0]) in model.functions:
-                owner, name = model.functions[h(f.args[0])]
-                out.add(("starts", owner, name))
-            elif k == "rq" and f.args[0] not in old_reqs:
-                agent = model.agents.get(h(f.args[1]))
-                if agent is not None:
-                    out.add(("sent", agent))
+            if k == V.PENDING:
+                fc = h(V.pending(f).fn)
+                if fc in model.functions:
+                    owner, name = model.functions[fc]
+                    out.add(("starts", owner, name))
+            elif k == V.RQ:
+                q = V.rq(f)
+                if q.request not in old_reqs:
+                    agent = model.agents.get(h(q.agent))
+                    if agent is not None:
+                        out.add(("sent", agent))
         for f in consumed:
-            if h(f) == "pending" and h(f.args[0]) in model.functions:
-                owner, name = model.functions[h(f.args[0])]
-                out.add(("ends", owner, name))
+            if h(f) == V.PENDING:
+                fc = h(V.pending(f).fn)
+                if fc in model.functions:
+                    owner, name = model.functions[fc]
+                    out.add(("ends", owner, name))
     return frozenset(out)
 
 
 def view_of(model, ctx) -> View:
-    from ..clf.terms import Const, Root
+    from ..clf.terms import Const
+    from . import vocabulary as V
     from .run import STATE_NAMES, value_of
 
-    def facts(fam):
+    def facts(fam, decode):
         bag = ctx.index.get(Const(fam))
-        return list(bag.items) if bag else []
+        return list(map(decode, bag.items)) if bag else []
 
-    def h(t):
-        return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
-
+    h = V.head_name
     values = {}
-    for f in facts("contains"):
-        cell = h(f.args[0])
+    for c in facts(V.CONTAINS, V.contains):
+        cell = h(c.cell)
         if cell in model.cells:
-            values[model.cells[cell]] = value_of(f.args[1])
-    states = {f.args[0]: STATE_NAMES.get(h(f.args[1]), h(f.args[1])) for f in facts("rs")}
+            values[model.cells[cell]] = value_of(c.value)
+    states = {x.request: STATE_NAMES.get(h(x.state), h(x.state)) for x in facts(V.RS, V.rs)}
     r0 = r0_id = None
     agent_states: dict = {}
-    for f in facts("rq"):
-        st = states.get(f.args[0])
-        if h(f.args[3]) == "itop":
-            r0, r0_id = st, f.args[0]
-        agent = model.agents.get(h(f.args[1]))
+    for q in facts(V.RQ, V.rq):
+        st = states.get(q.request)
+        if h(q.emitter) == "itop":
+            r0, r0_id = st, q.request
+        agent = model.agents.get(h(q.agent))
         if agent is not None and st is not None:
             agent_states.setdefault(agent, set()).add(st)
     ec = None
     if r0 == "failure":
-        ec = next((f.args[1] for f in facts("ecf") if f.args[0] is r0_id or f.args[0] == r0_id), None)
-    paused = {f.args[0] for f in facts("rstat") if h(f.args[1]) != "go"}
+        ec = next((e.ec for e in facts(V.ECF, V.ecf) if e.request is r0_id or e.request == r0_id), None)
+    paused = {z.inst for z in facts(V.RSTAT, V.rstat) if h(z.pause) != "go"}
     tasks: dict = {}
-    for f in facts("act"):
-        t = model.tasks.get(h(f.args[2]))
+    for a in facts(V.ACT, V.act):
+        t = model.tasks.get(h(a.task))
         if t is not None:
-            tasks.setdefault(t, set()).add("paused" if f.args[0] in paused else "go")
+            tasks.setdefault(t, set()).add("paused" if a.inst in paused else "go")
     return View(values, r0, ec, agent_states, tasks)
 
 

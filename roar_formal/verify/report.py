@@ -11,10 +11,14 @@ the testing API as plain text.
 
 from __future__ import annotations
 
+from typing import Optional
+
 from ..lines import Lines
+from ..roar.report import decode_state
+from ..trace.render import KIND_STYLE
 from .check import counterexample_steps
 
-__all__ = ["counterexample_report", "counterexample_lines"]
+__all__ = ["counterexample_report", "counterexample_lines", "replay_step_lines", "replay_state_lines"]
 
 
 def counterexample_report(res, prop: str) -> dict:
@@ -116,10 +120,10 @@ def counterexample_lines(res, prop: str, verbose: bool = False) -> Lines:
     return out
 
 
-def _roar_final_lines(rep: dict, shape: str) -> Lines:
+def _roar_final_lines(rep: dict, shape: str, head: Optional[str] = None) -> Lines:
     """The final state as a per-agent table, then the deadlock's wait-for cycle."""
     out = Lines()
-    head = "final state" if shape == "path" else "state where the cycle starts"
+    head = head or ("final state" if shape == "path" else "state where the cycle starts")
     out.add(f"    {head}:", wrap=True)
     rows = rep["final"]
     width = max([len(a) for a in rows] + [5])
@@ -169,3 +173,51 @@ def safe_name(res, prop: str) -> str:
     """The file stem of a job's picture or trace: the job name with unsafe characters replaced."""
     return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in res.job.name) + f".{prop}"
 
+
+
+def replay_step_lines(rep, i: int, verbose: bool = False, always: bool = False) -> Lines:
+    """Step ``i`` (from 1) of a replayed trace (:class:`~roar_formal.verify.replay.TraceReplay`):
+    for a spec, the agent, its ROAR events and the variables it changed (the CLF step with
+    ``verbose``; a step with no ROAR event prints nothing unless ``always``); for a ``.clf``
+    model, the rule and the facts it consumed and produced."""
+    out = Lines()
+    s = rep.steps[i - 1]
+    rec = rep.result.records[i - 1]
+    if s["loop"] and (i == 1 or not rep.steps[i - 2]["loop"]):
+        out.add("    -- cycle (repeats forever) --", style="yellow")
+    clf = f"{', '.join(rec['consumed'])} -> {', '.join(rec['produced'])}"
+    if rep.compiled is None:
+        out.add((f"  {i:>4}. ", "bold"), f"{s['rule']} ", (f"[{s['group']}]", "dim"), f"  {clf}")
+        return out
+    shown = [ev for ev in s["events"] if ev["kind"] != "write"]
+    rule = [(f"  ({s['rule']})", "dim")] if verbose else []
+    for ev in shown:
+        out.add(f"  {i:>4}. {ev['agent']:<12} ", (ev["text"], KIND_STYLE.get(ev["kind"], "")), *rule)
+    for ch in s["changes"]:
+        lead = f"  {i:>4}. {ch['agent']:<12}" if not shown else " " * 19
+        out.add(f"{lead} {ch['var']}: {ch['old']} -> {ch['new']}", *rule)
+    if (verbose or always) and not shown and not s["changes"]:
+        out.add(f"  {i:>4}. {s['group']:<12} ", (f"({s['rule']}: no ROAR event)", "dim"))
+    if verbose:
+        out.add((f"          {clf}", "dim"))
+    return out
+
+
+def replay_state_lines(rep, i: int, agent: Optional[str] = None) -> Lines:
+    """The state after step ``i`` of a replayed trace (0: the start): per agent for a spec (only
+    ``agent``'s row when given), the facts for a ``.clf`` model; at the end of a deadlock, the
+    wait-for cycle."""
+    table = rep.state_table(i)
+    if rep.compiled is None:
+        return Lines().add("    state: " + "; ".join(table["facts"]))
+    if agent is not None:
+        if agent not in table:
+            return Lines().add(f"    no agent {agent!r}; the agents are: {', '.join(table)}", style="red")
+        table = {agent: table[agent]}
+    doc = {"final": table, "deadlock": None}
+    last = i == len(rep.steps)
+    if last and agent is None and rep.header.get("property") == "deadlock":
+        final = decode_state(rep.compiled, rep.result.states[i], *rep._labels)
+        blocked = [{"agent": a, **act} for a, row in final["agents"].items() for act in row["activities"]]
+        doc["deadlock"] = {"blocked": blocked, "wait_for": final["wait_for"], "cycle": final["cycle"]}
+    return _roar_final_lines(doc, "path" if last else "step", head=None if last else f"state after step {i}")
