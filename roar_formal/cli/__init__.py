@@ -24,7 +24,7 @@ _app = typer.Typer(
     name="roar-verify",
     help="Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
 )
 
@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> None:
                 run_clf(**opts)
                 sys.exit(0)
         _register_for(args)
-        _app(args=argv, standalone_mode=True)
+        _app(args=argv, standalone_mode=True, prog_name="roar-verify")
     except RoarError as exc:
         err_console.print(f"[bold red]error:[/] {escape(exc.format())}", markup=True, soft_wrap=True)
         sys.exit(2)
