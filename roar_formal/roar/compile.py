@@ -113,6 +113,7 @@ class CompiledModel:
     functional: str = "abstract"
     where_cells: dict[str, list[str]] = field(default_factory=dict)      # cst -> cells its where clause writes
     spec_text: str = ""              # the generated declarations alone (added to the framework's signature)
+    call_sites: dict[str, list] = field(default_factory=dict)   # function const -> positions of its calls
 
     def program(self):
         """The CLF program (cached)."""
@@ -304,6 +305,7 @@ class _Compiler:
         self.model.fn_params[fc] = list(self.checked.fn_sigs.get((owner, e.name), (None, []))[1] or [])
         self.pending_fns[fc] = (owner, e.name, result_ty)
         s = self.site("call", cx.agent, cx.task, cx.recipe, e.pos, format_expr(e), function=e.qualified)
+        self.model.call_sites.setdefault(fc, []).append(e.pos)
         prem, outs = self.premises(sub)
         vals = [f"A{i + 1}" for i in range(len(args))]
         evals = "".join(f" -o !peval vnil E vnil {p} {v}" for p, v in zip(args, vals))
@@ -834,6 +836,8 @@ def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[R
     answered by the registry's callables, outside the signature).
     """
     checked = checked_spec(spec)
+    if registry is not None and functional == "python":
+        registry.resolve(checked.spec)   # every call bound, with the right number of arguments (located)
     req, typed = typed_request(checked, request)
     if req.target() is None:
         raise RoarError("the request must name exactly one agent", req.pos)

@@ -228,8 +228,8 @@ class Resolver:
                 v = prim(*py)
             except RoarError:
                 raise
-            except Exception as exc:  # the functional layer failed: a primitive failure
-                return None, f"raised {type(exc).__name__}: {exc}", {}
+            except Exception as exc:  # a bug of the functional layer: the user's to fix, located
+                raise primitive_error(self.model, fc, prim, py, exc) from None
             if rty is None or v is None and rty != "bool":
                 return const("vunit"), "done", {}
             return self.values.term(v, rty), "returned", {}
@@ -244,6 +244,24 @@ class Resolver:
         if not o.success:
             return None
         return self.values.term(_default(rty, self.model), rty)
+
+
+def primitive_error(model: CompiledModel, fc: str, prim, args: list, exc: BaseException) -> RoarError:
+    """A primitive that raised: a located error naming it, its arguments and the Python
+    exception (a primitive fails by returning false or by a declared outcome; an exception is a
+    bug in the functional layer, never read as a failure to retry)."""
+    owner, name = model.functions.get(fc, (None, prim.name))
+    qual = f"{owner}::{name}" if owner else name
+    sites = model.call_sites.get(fc, [])
+    notes = [f"called as {name}({', '.join(map(repr, args))})"]
+    if len(sites) > 1:
+        notes.append("other calls: " + ", ".join(str(p) for p in sites[1:]))
+    if isinstance(exc, TypeError) and "argument" in str(exc):
+        notes.append(f"the spec calls it with {len(args)} argument(s); check the Python function's parameters")
+    else:
+        notes.append("a primitive reports a failure by returning false or through its declared outcomes; "
+                     "an exception is a bug of the functional layer")
+    return RoarError(f"primitive '{qual}' raised {type(exc).__name__}: {exc}", sites[0] if sites else None, notes)
 
 
 def _default(rty, model):
