@@ -507,6 +507,7 @@ class _Compiler:
                     f"{s}_wake : ctl I (m_block Old) (ccons {s} C) E{wprem}\n"
                     f"  -o !val_eq Old {self._list(list(fresh.values()))} ff\n"
                     f"  -o {{ctl I m_run (ccons {s} C) E{wouts}}}.")
+        self.division_failures(st, s, cx, kind)
         for _ in range(cx.pushed):
             env.pop(0)
         if isinstance(st, a.Let):
@@ -514,6 +515,31 @@ class _Compiler:
         if isinstance(st, a.Ensure) and st.handle:
             env.insert(0, st.handle)
         return cx.hoisted + [s]
+
+    def division_failures(self, st: a.Stmt, s: str, cx: _Ctx, kind: str) -> None:
+        """A division by zero in the statement's expressions is a local failure of the recipe at
+        this site (the engine's division has no value there, so without these rules the recipe
+        would block, and the explorer would call it a deadlock)."""
+        if isinstance(st, (a.Set, a.Let)):
+            roots = [st.value]
+        elif isinstance(st, (a.Wait, a.Assert)):
+            roots = [st.cond]
+        elif isinstance(st, (a.Make, a.Ensure)):
+            roots = list(st.constraint.writes(cx.agent.name).values())
+        else:
+            return
+        divisors = [n.right for e in roots for n in a.walk(e) if isinstance(n, a.Binary) and n.op == "/"]
+        if not divisors:
+            return
+        E = cx.envpat()
+        prem, outs = self.premises(cx)
+        for k, d in enumerate(divisors):
+            where = self.site("div", cx.agent, cx.task, cx.recipe, d.pos,
+                              f"division by zero: {format_expr(d)} is 0 in {self.model.sites[s].text}")
+            self.rules.append(
+                f"{s}_div{chr(97 + k)} : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
+                f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0) -o act I R0 T0 Rc0 N\n"
+                f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
 
     def send(self, ag: a.Agent, st, cx: _Ctx, s: str, head: str) -> None:
         """make / ensure (4.4, 8.3): a fresh request with the where values, owned by the activation."""
