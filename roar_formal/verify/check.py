@@ -188,7 +188,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
                 verdicts[p] = check_deadlock(graph, lambda sid: accept_ctx(states[sid]))
             elif p == "livelock":
                 verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of, step_of)
-                                             if spec_checks.progress else graph)
+                                             if spec_checks.progress else graph, strong=props.strong)
             elif p == "invariant" or p in spec_checks.handles:
                 verdicts[p] = spec_checks.decide(p, graph, ctx_of,
                                                  (lambda sid: never(states[sid])) if never is not None else None,
@@ -363,7 +363,8 @@ def _run_job(job: Job, on_progress) -> JobResult:
             if p == "invariant":
                 verdicts[p] = check_states(graph, p, lambda sid: never(state_of(sid)))
             else:
-                verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else check_livelock(graph)
+                verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else \
+                    check_livelock(graph, strong=job.props.strong)
         return verdicts
 
     if grounding_stopped is not None:

@@ -36,6 +36,7 @@ class PropertySpec:
     check: list[str] = field(default_factory=list)
     progress: list[str] = field(default_factory=list)
     fairness: str = "first-argument"
+    strong: bool = False   # livelock under strong fairness ([livelock] strength = "strong")
     accept: Optional[str] = None  # a positive CLF type: quiescent states matching it are final
     sources: list[str] = field(default_factory=list)
     fairness_given: bool = False
@@ -195,7 +196,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                 spec.check.append(p)
     if "livelock" in d:
         ll = _typed(d, "livelock", dict, path, "a property file")
-        _expect_keys(ll, {"progress", "fairness"}, "[livelock]", path)
+        _expect_keys(ll, {"progress", "fairness", "strength"}, "[livelock]", path)
         if "progress" in ll:
             for x in _typed(ll, "progress", list, path, "[livelock]"):
                 if isinstance(x, str) and looks_like_spec(x):
@@ -209,6 +210,13 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                                 Pos(str(path), _line_of(path, "fairness"), 1))
             spec.fairness = f
             spec.fairness_given = True
+        if "strength" in ll:
+            st = _typed(ll, "strength", str, path, "[livelock]")
+            if st not in ("weak", "strong"):
+                raise RoarError(f"strength must be 'weak' (a process enabled all along a cycle moves on it) or "
+                                f"'strong' (a process enabled infinitely often moves infinitely often), not '{st}'",
+                                _value_pos(path, "strength"))
+            spec.strong = st == "strong"
     if "sequential-achievement" in d:
         sa = _typed(d, "sequential-achievement", dict, path, "a property file")
         _expect_keys(sa, {"recipes"}, "[sequential-achievement]", path)

@@ -197,7 +197,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
                 verdicts[p] = check_deadlock(graph, lambda sid: system.final(states[sid]))
             elif p == "livelock":
                 verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of, explorer.steps.__getitem__)
-                                             if spec_checks.progress else graph)
+                                             if spec_checks.progress else graph, strong=props.strong)
             elif p == "invariant" or p in spec_checks.handles:
                 verdicts[p] = spec_checks.decide(p, graph, ctx_of, (lambda sid: never(states[sid].ctx))
                                                  if never is not None else None, explorer.steps.__getitem__)
