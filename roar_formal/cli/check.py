@@ -157,7 +157,9 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed", help="With --on-robot: the robot's seed."),
         fault: List[str] = typer.Option([], "--fault", help="With --on-robot: a fault point of the scenario."),
         loops: int = typer.Option(3, "--loops", help="With --on-robot: how many times to drive a lasso's cycle."),
-        png: Optional[Path] = typer.Option(None, "--png", help="With --on-robot: draw the robot's run here."),
+        png: Optional[Path] = typer.Option(None, "--png", help="Draw the trace's message sequence chart here (PNG); "
+                                           "with --on-robot, the robot's run."),
+        svg: Optional[Path] = typer.Option(None, "--svg", help="Draw the trace's message sequence chart here (SVG)."),
         functional: Optional[Path] = typer.Option(
             None, "--functional", help="With a spec: this functional-layer module instead of the one next to it."),
         force: bool = typer.Option(False, "--force",
@@ -183,9 +185,13 @@ def register(app: typer.Typer) -> None:
                 raise typer.Exit(code)
             return
         from ..clf.query import with_big_stack
+        from ..verify.pictures import check_output_file, write_chart
         from ..verify.replay import replay_trace
-        from ..verify.report import replay_state_lines, replay_step_lines
+        from ..verify.report import replay_report, replay_state_lines, replay_step_lines
 
+        for path, option in ((png, "--png"), (svg, "--svg")):
+            if path is not None:
+                check_output_file(path, option, [trace] + ([model] if model is not None else []))
         console = make_console()
         rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
         for note in rep.result.notes:
@@ -203,6 +209,10 @@ def register(app: typer.Typer) -> None:
         tail = " and the cycle closes" if rep.result.cycle_closes else ""
         console.print(f"replayed {n} step{'s' if n != 1 else ''}{tail}: every step is a step of the model",
                       style="green")
+        what = rep.header.get("property") or rep.header.get("kind") or "trace"
+        for path in write_chart(replay_report(rep), f"{Path(trace).name}: replay of the {what} "
+                                f"({len(rep.steps)} steps)", f"the trace {trace}", png, svg):
+            console.print(f"chart written to {path}")
         if rep.confirmed is False:
             console.print(f"NOT CONFIRMED: {rep.confirmation}", style="red")
             raise typer.Exit(1)

@@ -31,6 +31,8 @@ def register(app: typer.Typer) -> None:
         fair: bool = typer.Option(False, "--fair", help="Fair round-robin scheduling instead of seeded random."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the CLF rule of each event."),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+        png: Optional[Path] = typer.Option(None, "--png", help="Draw the run's message sequence chart here (PNG)."),
+        svg: Optional[Path] = typer.Option(None, "--svg", help="Draw the run's message sequence chart here (SVG)."),
     ) -> None:
         """Run SPEC on a request to quiescence and print the ROAR-level trace.
 
@@ -43,6 +45,12 @@ def register(app: typer.Typer) -> None:
         from ..roar.run import parse_fault, run_model
         faults = [parse_fault(f) for f in fault]
         spec_ast = load_spec(spec)
+        if png is not None or svg is not None:
+            from ..roar.sources import spec_files
+            from ..verify.pictures import check_output_file
+            for path, option in ((png, "--png"), (svg, "--svg")):
+                if path is not None:
+                    check_output_file(path, option, [Path(f) for f in spec_files(spec_ast)] + [Path(spec)])
         reg = load_registry(functional_module(spec, functional))
         model = compile_spec(spec_ast, request, registry=reg, functional="python")
         console = make_console()
@@ -58,6 +66,12 @@ def register(app: typer.Typer) -> None:
         if trace is not None:
             _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault,
                                                    functional_module(spec, functional)))
+        drawn = []
+        if png is not None or svg is not None:
+            from ..verify.pictures import write_chart
+            from ..verify.report import run_report
+            drawn = write_chart(run_report(res), f"{Path(spec).name}: request {request}: {res.outcome}",
+                                f"the run of {request}", png, svg)
         if as_json:
             print(json.dumps({"spec": str(spec), "request": request, "seed": seed, "faults": fault,
                               "outcome": res.outcome, "quiescent": res.quiescent, "clf_steps": len(res.steps),
@@ -72,6 +86,8 @@ def register(app: typer.Typer) -> None:
                 console.print(f"  error context: {line}")
             if trace is not None:
                 console.print(f"trace written to {trace}")
+            for path in drawn:
+                console.print(f"chart written to {path}")
         if not res.ok:
             raise typer.Exit(1)
 

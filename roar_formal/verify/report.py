@@ -18,7 +18,8 @@ from ..roar.report import decode_state
 from ..trace.render import KIND_STYLE
 from .check import counterexample_steps
 
-__all__ = ["counterexample_report", "counterexample_lines", "replay_step_lines", "replay_state_lines"]
+__all__ = ["counterexample_report", "counterexample_lines", "replay_step_lines", "replay_state_lines",
+           "replay_report", "run_report"]
 
 
 def counterexample_report(res, prop: str) -> dict:
@@ -221,3 +222,40 @@ def replay_state_lines(rep, i: int, agent: Optional[str] = None) -> Lines:
         blocked = [{"agent": a, **act} for a, row in final["agents"].items() for act in row["activities"]]
         doc["deadlock"] = {"blocked": blocked, "wait_for": final["wait_for"], "cycle": final["cycle"]}
     return _roar_final_lines(doc, "path" if last else "step", head=None if last else f"state after step {i}")
+
+
+def replay_report(rep) -> dict:
+    """A replayed trace (:class:`~roar_formal.verify.replay.TraceReplay`) in the form of
+    :func:`counterexample_report`, for charts."""
+    n = len(rep.steps)
+    out = {"property": rep.header.get("property"), "shape": rep.header.get("shape", "path"), "steps": rep.steps,
+           "requests": rep.requests, "final": None, "deadlock": None}
+    table = rep.state_table(n)
+    out["final"] = table
+    if rep.compiled is not None and rep.header.get("property") == "deadlock" and rep.confirmed:
+        final = decode_state(rep.compiled, rep.result.states[n], *rep._labels)
+        blocked = [{"agent": a, **act} for a, row in final["agents"].items() for act in row["activities"]]
+        out["deadlock"] = {"blocked": blocked, "wait_for": final["wait_for"], "cycle": final["cycle"]}
+    return out
+
+
+def run_report(res) -> dict:
+    """A run (:class:`~roar_formal.roar.run.RunResult`) in the form of :func:`counterexample_report`:
+    its ROAR events per CLF step, the variables each step wrote, the requests it sent."""
+    steps: dict[int, dict] = {}
+    for e in res.events:
+        j = e.as_json()
+        s = steps.setdefault(e.step, {"step": e.step, "loop": False, "group": j.get("agent", ""), "rule": "",
+                                      "events": [], "changes": []})
+        s["events"].append(j)
+        if j["kind"] == "write":
+            agent, _, var = str(j.get("var", "")).partition("::")
+            s["changes"].append({"agent": agent or j.get("agent", ""), "var": var or j.get("var", ""),
+                                 "old": None, "new": j.get("value")})
+    requests = {}
+    for label, text in res.requests.items():
+        agent, _, constraint = text.partition(": ")
+        requests[label] = {"agent": agent, "constraint": constraint}
+    agents = {ag.name: {} for ag in res.model.spec.agents}
+    return {"property": None, "shape": "path", "steps": [steps[k] for k in sorted(steps)], "requests": requests,
+            "final": agents, "deadlock": None}

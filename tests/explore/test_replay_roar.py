@@ -121,3 +121,42 @@ def test_replay_json_of_the_check_and_the_replay_name_the_same_requests(tmp_path
                                               functional=FAULTY / "reliable_tools.py"))
     assert rep.requests == counterexample_report(res, "sequential-achievement")["requests"]
     assert json.dumps(rep.steps)   # plain data
+
+
+def test_replay_draws_the_chart_the_checker_draws(tmp_path, roar_cli):
+    """The chart of a replayed deadlock has the arrows and wait-for cycle of the checker's chart."""
+    from roar_formal.verify.pictures import chart_of_report, sequence_chart
+    from roar_formal.verify.report import replay_report
+    res, trace = counterexample("mutual_make.toml", tmp_path)
+    code, out, _err = roar_cli("replay", trace, "--model", FAULTY / "mutual_make.roar",
+                               "--png", tmp_path / "r.png", "--svg", tmp_path / "r.svg")
+    assert code == 0 and f"chart written to {tmp_path / 'r.png'}" in out
+    assert (tmp_path / "r.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "r.svg").read_text().lstrip().startswith("<?xml")
+    rep = with_big_stack(lambda: replay_trace(trace, FAULTY / "mutual_make.roar"))
+    _f, _a, mine = chart_of_report(replay_report(rep), "t", "t")
+    _f, _a, theirs = sequence_chart(res, "deadlock")
+    assert [(a, b, label) for a, b, label, _x in mine["arrows"]] == \
+           [(a, b, label) for a, b, label, _x in theirs["arrows"]]
+    assert [(a, b) for a, b, _x in mine["cycle"]] == [(a, b) for a, b, _x in theirs["cycle"]] == \
+           [("arm", "door"), ("door", "arm")]
+
+
+def test_run_draws_its_chart_and_never_overwrites_an_input(tmp_path, roar_cli):
+    from roar_formal.roar.compile import compile_spec
+    from roar_formal.roar.run import run_model
+    from roar_formal.roar.spec import load_spec
+    from roar_formal.verify.pictures import chart_of_report
+    from roar_formal.verify.report import run_report
+    spec = FAULTY / "mutual_make_fixed.roar"
+    code, out, _err = roar_cli("run", spec, "-r", "arm::started == true", "--svg", tmp_path / "run.svg")
+    assert code == 0 and "chart written to" in out and (tmp_path / "run.svg").stat().st_size > 1000
+    model = compile_spec(load_spec(spec), "arm::started == true", functional="python")
+    _f, _a, art = chart_of_report(run_report(run_model(model, seed=0)), "t", "t")
+    assert set(art["lifelines"]) == {"arm", "door"}
+    assert [(a, b, label) for a, b, label, _x in art["arrows"]] == [
+        ("arm", "door", "9. make R1: door::open == true"), ("door", "arm", "18. make R2: arm::parked == true")]
+    before = spec.read_bytes()
+    code, _out, err = roar_cli("run", spec, "-r", "arm::started == true", "--png", spec)
+    assert code == 2 and "is an input of this command; not overwritten" in err
+    assert spec.read_bytes() == before
