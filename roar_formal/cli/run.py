@@ -33,6 +33,8 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
         png: Optional[Path] = typer.Option(None, "--png", help="Draw the run's message sequence chart here (PNG)."),
         svg: Optional[Path] = typer.Option(None, "--svg", help="Draw the run's message sequence chart here (SVG)."),
+        dot: Optional[Path] = typer.Option(None, "--dot", help="Write the run's task tree here (DOT: goals, "
+                                           "commands, sequential-achievement constraints; `dot -Tsvg` draws it)."),
     ) -> None:
         """Run SPEC on a request to quiescence and print the ROAR-level trace.
 
@@ -45,10 +47,10 @@ def register(app: typer.Typer) -> None:
         from ..roar.run import parse_fault, run_model
         faults = [parse_fault(f) for f in fault]
         spec_ast = load_spec(spec)
-        if png is not None or svg is not None:
+        if png is not None or svg is not None or dot is not None:
             from ..roar.sources import spec_files
             from ..verify.pictures import check_output_file
-            for path, option in ((png, "--png"), (svg, "--svg")):
+            for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
                 if path is not None:
                     check_output_file(path, option, [Path(f) for f in spec_files(spec_ast)] + [Path(spec)])
         reg = load_registry(functional_module(spec, functional))
@@ -72,6 +74,15 @@ def register(app: typer.Typer) -> None:
             from ..verify.report import run_report
             drawn = write_chart(run_report(res), f"{Path(spec).name}: request {request}: {res.outcome}",
                                 f"the run of {request}", png, svg)
+        if dot is not None:
+            from ..roar.traces import run_records
+            from ..tca.roar_runs import task_tree_events
+            from ..tca.tree_dot import task_tree_dot
+            from ..trace.format import write_atomic
+            header, records = run_records(res, spec, request, seed, fault, functional_module(spec, functional))
+            text = task_tree_dot(task_tree_events(header, records),
+                                 f"{Path(spec).name}: request {request}: {res.outcome}")
+            _writing(dot, lambda: write_atomic(dot, text))
         if as_json:
             print(json.dumps({"spec": str(spec), "request": request, "seed": seed, "faults": fault,
                               "outcome": res.outcome, "quiescent": res.quiescent, "clf_steps": len(res.steps),
@@ -88,6 +99,8 @@ def register(app: typer.Typer) -> None:
                 console.print(f"trace written to {trace}")
             for path in drawn:
                 console.print(f"chart written to {path}")
+            if dot is not None:
+                console.print(f"task tree written to {dot}")
         if not res.ok:
             raise typer.Exit(1)
 

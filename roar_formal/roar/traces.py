@@ -10,7 +10,7 @@ from ..trace.format import write_trace
 from .explore import sequential_pairs
 from .sources import spec_fingerprint
 
-__all__ = ["write_run_trace", "jsonable"]
+__all__ = ["write_run_trace", "run_records", "jsonable"]
 
 
 def jsonable(v):
@@ -27,6 +27,13 @@ def write_run_trace(path: Path, res, spec, request: str, seed: int, faults,
     """The run as a JSON Lines trace: one line per CLF step, with its ROAR events; the header
     names the sequential-achievement pairs (for ``tca-check``) and the sources' fingerprint
     (so that replaying it on other sources is refused)."""
+    header, steps = run_records(res, spec, request, seed, faults, functional)
+    write_trace(path, header, steps)
+
+
+def run_records(res, spec, request: str, seed: int, faults, functional: Optional[Path] = None) \
+        -> tuple[dict, list[dict]]:
+    """(header, step records) of a run, as :func:`write_run_trace` writes them."""
     by_step: dict[int, list] = {}
     for e in res.events:
         by_step.setdefault(e.step, []).append(e.as_json())
@@ -41,4 +48,4 @@ def write_run_trace(path: Path, res, spec, request: str, seed: int, faults,
               "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
               "outcome": res.outcome, "requests": res.requests,
               "fingerprint": spec_fingerprint(Path(spec), res.model.spec, functional)}
-    write_trace(path, header, steps)
+    return header, steps
