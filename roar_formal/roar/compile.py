@@ -114,6 +114,7 @@ class CompiledModel:
     where_cells: dict[str, list[str]] = field(default_factory=dict)      # cst -> cells its where clause writes
     spec_text: str = ""              # the generated declarations alone (added to the framework's signature)
     call_sites: dict[str, list] = field(default_factory=dict)   # function const -> positions of its calls
+    candidates: dict[str, list] = field(default_factory=dict)   # cst -> (agent, task) the logic layer proved
 
     def program(self):
         """The CLF program (cached)."""
@@ -184,6 +185,10 @@ class _Compiler:
         self.task_run_csts: dict[str, str] = {}   # task const -> cst const
         self.predicates: dict[str, str] = {}      # pexp text -> agent (for cands)
         self.predicate_exprs: dict[str, tuple[a.Agent, a.Expr]] = {}   # pexp text -> (agent, qualified predicate)
+        # cst -> the equalities its where clause establishes with literal values (hypotheses of the
+        # logic layer, 4.3); None once two sends of it disagree (then it has none)
+        self.where_hyps: dict[str, Optional[tuple[str, ...]]] = {}
+        self.hyp_keys: dict[str, tuple[str, tuple[str, ...]]] = {}   # pwhere key -> (predicate, hypotheses)
         self.rules: list[str] = []
         self.pending_fns: dict[str, tuple[Optional[str], str, str]] = {}
 
@@ -516,6 +521,43 @@ class _Compiler:
             env.insert(0, st.handle)
         return cx.hoisted + [s]
 
+    def note_where_hyps(self, cst: str, cells: list[str], values: list[a.Expr]) -> None:
+        """Record the equalities ``cell == literal`` a send of ``cst`` establishes by its where
+        clause; sends that disagree (or a value that is not a literal) leave the constraint with
+        no hypothesis, as if it had no where clause (fewer candidates, never wrong ones)."""
+        hyps = []
+        for cell, v in zip(cells, values):
+            lit = self.literal(v)
+            if lit is None:
+                self.where_hyps[cst] = None
+                return
+            hyps.append(f"(fatom (pbin o_eq (pc {cell}) (pl {lit})))")
+        got = tuple(hyps)
+        if cst in self.where_hyps and self.where_hyps[cst] != got:
+            self.where_hyps[cst] = None
+        else:
+            self.where_hyps[cst] = got
+
+    def literal(self, e: a.Expr) -> Optional[str]:
+        """The value of a literal expression (a where value), or None."""
+        if isinstance(e, (a.IntLit, a.DoubleLit, a.BoolLit, a.StringLit)) or (
+                isinstance(e, a.Unary) and e.op == "-" and isinstance(e.operand, (a.IntLit, a.DoubleLit))):
+            return self.const_value(e)
+        return None
+
+    def key_hypotheses(self) -> None:
+        """A constraint with where hypotheses is decided on its own key, ``pwhere P Hs`` (evaluated
+        as ``P``), whose candidates the logic layer proves under ``Hs`` (4.3: "a solution under
+        certain hypotheses")."""
+        for c, hyps in sorted(self.where_hyps.items()):
+            if not hyps:
+                continue
+            p = self.cst_pexp[c]
+            key = f"(pwhere {p} {self._list([f'(vform {h})' for h in hyps])})"
+            self.cst_pexp[c] = key
+            self.predicates[key] = self.predicates[p]
+            self.hyp_keys[key] = (p, hyps)
+
     def division_failures(self, st: a.Stmt, s: str, cx: _Ctx, kind: str) -> None:
         """A division by zero in the statement's expressions is a local failure of the recipe at
         this site (the engine's division has no value there, so without these rules the recipe
@@ -552,6 +594,7 @@ class _Compiler:
         known = self.where_cells.setdefault(cst, cells)
         if known != cells:
             raise UnsupportedError("the same constraint sent with different where clauses", st.pos)
+        self.note_where_hyps(cst, cells, list(writes.values()))
         prem, outs = self.premises(cx)
         names = [f"W{i + 1}" for i in range(len(wvals))]
         E = cx.envpat()
@@ -684,6 +727,7 @@ class _Compiler:
             raise UnsupportedError("the request's where clause differs from the one its recipes use",
                                    request.pos)
         self.where_cells[req_cst] = cells
+        self.note_where_hyps(req_cst, cells, list(writes.values()))
         wvals = []
         for v in writes.values():
             wvals.append(self.const_value(v))
@@ -694,6 +738,7 @@ class _Compiler:
             decls.append(f"id_{c} : cst_id {c} {i}.")
         decls += [f"{fc} : fn." for fc in sorted(m.functions)]
         o[hdr:hdr] = decls
+        self.key_hypotheses()
         for c in sorted(self.cst_pexp):
             self.constraint_rules(c)
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
@@ -832,18 +877,30 @@ class _Compiler:
             for t in self.spec.agent(agent).tasks:
                 goals.append((p, self.task_c(agent, t.name)))
         budget = nat(PROOF_BUDGET)
-        queries = "".join(f"#query * * * 1 prove {budget} {tc} {self._form(*self.predicate_exprs[p])}.\n"
-                          for p, tc in goals)
+        queries = "".join(f"#query * * * 1 prove {budget} {tc} {self.goal_form(p)}.\n" for p, tc in goals)
         prog = Program(extend_signature(sig, queries, "<compiled model>"))
         found: dict[str, list[str]] = {p: [] for p in self.predicates}
         for (p, tc), q in zip(goals, [d for d in prog.sig.directives if hasattr(d, "goal")]):
             for _ in Backward(prog).solve(q.goal):
                 found[p].append(f"(vtsk {tc})")
                 break
+        for c, key in self.cst_pexp.items():   # for people and tests: each constraint's candidate tasks
+            self.model.candidates[c] = [self.model.tasks[t[len("(vtsk "):-1]] for t in found.get(key, [])]
         out = ["\n% the logic layer's candidates (prove, run by the compiler)"]
         for i, p in enumerate(sorted(found)):
             out.append(f"cands_{i} : cands {p} {self._list(found[p])}.")
         return "\n".join(out) + "\n"
+
+    def goal_form(self, p: str) -> str:
+        """What the logic layer proves for predicate key ``p``: its formula, under the where
+        hypotheses of a ``pwhere`` key."""
+        if p in self.hyp_keys:
+            base, hyps = self.hyp_keys[p]
+            form = self._form(*self.predicate_exprs[base])
+            for h in reversed(hyps):
+                form = f"(fwith {h} {form})"
+            return form
+        return self._form(*self.predicate_exprs[p])
 
     def _form(self, agent: a.Agent, e: a.Expr) -> str:
         """A predicate as a formula of the logic layer: conjunctions split, each conjunct an atom."""

@@ -57,7 +57,8 @@ FaultLike = Union[str, "Fault"]
 BudgetLike = Union[Budget, Mapping[str, Any], None]
 
 #: properties a job on a spec can check (docs/checking.md, "Jobs on a ROAR spec")
-ROAR_PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant")
+ROAR_PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant",
+                   "mission-completion", "mission-failure")
 #: properties a job on a .clf model can check
 CLF_PROPERTIES = ("deadlock", "livelock", "invariant")
 
