@@ -51,7 +51,7 @@ from ..roar import vocabulary as V
 from ..roar.compile import CompiledModel
 from ..roar.explore import RoarSystem, roar_final
 from ..roar.functional import Registry
-from ..roar.run import Values, list_items
+from ..roar.run import Values, list_items, primitive_error
 from .activity import Activity, CallResult
 from .robot import BLOCKED_WINDOW, WAIT_LIMIT, Robot
 from .scenario import Scenario
@@ -385,7 +385,8 @@ class RobotTree:
 
 def start_call(model: CompiledModel, registry: Registry, robot: Robot, fc: str, args: list, now_fc=()):
     """Start a call of function ``fc`` on ``robot``: (activity handle, None) while it runs, or
-    (None, result) when it ended at once. A primitive that raises fails (a primitive failure)."""
+    (None, result) when it ended at once. A primitive that raises is a located error (a bug of the
+    binding), as in ``run``."""
     if fc in now_fc:
         return None, CallResult(int(round(robot.time * 1000)), False, "now", {})
     owner, name = model.functions[fc]
@@ -402,8 +403,8 @@ def start_call(model: CompiledModel, registry: Registry, robot: Robot, fc: str, 
         return None, CallResult(v, False, "returned", {})
     except RoarError:
         raise
-    except Exception as exc:   # the functional layer failed: a primitive failure
-        return None, CallResult(None, True, f"raised {type(exc).__name__}: {exc}", {})
+    except Exception as exc:   # a bug of the binding: located, never a failure to retry
+        raise primitive_error(model, fc, prim, args, exc) from None
 
 
 # ---------------------------------------------------------------------------------------------- the system

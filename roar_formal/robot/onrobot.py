@@ -26,7 +26,7 @@ from ..clf.context import LIN
 from ..clf.terms import Const, Root, const
 from ..errors import RoarError
 from ..roar import vocabulary as V
-from ..roar.run import Narrator, Values, list_items, site_of
+from ..roar.run import Narrator, Values, list_items, primitive_error, site_of
 from .activity import Activity, CallResult
 from .conform import TIMING_RULES, best_match
 from .robot import Robot
@@ -123,8 +123,8 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
                 res = v if isinstance(v, CallResult) else CallResult(v, False, "returned", {})
         except RoarError:
             raise
-        except Exception as exc:
-            res = CallResult(None, True, f"raised {type(exc).__name__}: {exc}", {})
+        except Exception as exc:   # a bug of the binding: located, never a failure to retry
+            raise primitive_error(model, fc, prim, args, exc) from None
         answered[d] = res
         rec.result = res
         rec.t_end = robot.time

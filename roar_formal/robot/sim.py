@@ -36,7 +36,7 @@ from ..roar import vocabulary as V
 from ..roar.compile import CompiledModel
 from ..roar.functional import Registry
 from ..roar.run import (Fault, Narrator, Resolver, RoarEvent, RunResult, Values, collect_result, list_items,
-                        site_of)
+                        primitive_error, site_of)
 from .activity import Activity, CallResult
 from .robot import Robot
 from .scenario import Scenario
@@ -324,8 +324,8 @@ class _Sim:
                 res = CallResult(v, False, "returned", {})
         except RoarError:
             raise
-        except Exception as exc:  # the functional layer failed: a primitive failure
-            res = CallResult(None, True, f"raised {type(exc).__name__}: {exc}", {})
+        except Exception as exc:  # a bug of the binding: located, never a failure to retry
+            raise primitive_error(self.model, fc, prim, rec.args, exc) from None
         self._finish(f, rec, res)
         return True
 
