@@ -44,6 +44,15 @@ __all__ = [
 _FILE: contextvars.ContextVar[str] = contextvars.ContextVar("roar_spec_file", default="<input>")
 
 
+#: the longest number literal read (Python refuses to convert ints of more than 4,300 digits)
+MAX_DIGITS = 1000
+
+
+def _short_enough(tok: Token) -> None:
+    if len(tok) > MAX_DIGITS:
+        raise SyntaxError_(f"a number of {len(tok):,} characters: at most {MAX_DIGITS:,} are read", _tpos(tok))
+
+
 def _tpos(tok: Token) -> Pos:
     return Pos(_FILE.get(), tok.line, tok.column)
 
@@ -322,9 +331,11 @@ class _Build(Transformer):
         return a.Field(base, str(name), pos=base.pos)
 
     def int_lit(self, c):
+        _short_enough(c[0])
         return a.IntLit(int(c[0]), pos=_tpos(c[0]))
 
     def double_lit(self, c):
+        _short_enough(c[0])
         return a.DoubleLit(float(c[0]), pos=_tpos(c[0]))
 
     def string_lit(self, c):

@@ -142,6 +142,8 @@ def _typed(d: dict, key: str, ty, path: Path, what: str) -> Any:
         tn = {int: "an integer", str: "a string", list: "a list", bool: "true or false",
               float: "a number", dict: "a table"}.get(ty, str(ty))
         raise RoarError(f"'{key}' in {what} must be {tn}, not {v!r}", Pos(str(path), _line_of(path, key), 1))
+    if isinstance(v, str) and "\0" in v:   # no path, name or formula holds a NUL character
+        raise RoarError(f"'{key}' in {what} holds a NUL character (\\u0000)", Pos(str(path), _line_of(path, key), 1))
     return v
 
 
@@ -402,7 +404,7 @@ def load_job(path: str | Path) -> Job:
     if not isinstance(props, list):
         raise RoarError("'properties' must be a path or a list of paths", Pos(str(path), _line_of(path, "properties"), 1))
     for p in props:
-        if not isinstance(p, str):
+        if not isinstance(p, str) or "\0" in p:
             raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
                             Pos(str(path), _line_of(path, "properties"), 1))
         load_properties((base / p).resolve(), job.props)

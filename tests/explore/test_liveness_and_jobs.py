@@ -162,6 +162,8 @@ deadlock = "holds"
     ('model = "m.clf"\nbackend = "fast"\n[expect]\ndeadlock = "holds"\n', ":2:1", "'backend' must be one of"),
     ('model = "m.clf\n', ":1:", "invalid TOML"),
     ('model = "m.clf"\n', ":1:1", "the job checks nothing"),
+    # found by fuzzing: a NUL in a path crashed the path library
+    ('name = "x"\nspec = "a\\u0000b.roar"\nrequest = "a::b == true"\n', ":2:1", "holds a NUL character"),
 ])
 def test_malformed_job_files_are_located_errors(tmp_path, capsys, text, where, msg):
     job = write(tmp_path, "bad.toml", text)
