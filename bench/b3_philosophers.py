@@ -61,8 +61,8 @@ LIVELOCK = textwrap.dedent("""
     sys.path.insert(0, {root!r})
     spec = importlib.util.spec_from_file_location("gen", {root!r} + "/models/philosophers/generate.py")
     gen = importlib.util.module_from_spec(spec); spec.loader.exec_module(gen)
-    from roar_formal.explore.check import run_job
-    from roar_formal.explore.jobs import load_job
+    from roar_formal.verify.check import run_job
+    from roar_formal.verify.jobs import load_job
     from roar_formal.explore.search import rss_mb
     d = pathlib.Path(tempfile.mkdtemp())
     (d / "ll.clf").write_text(gen.program("ll", {n}))

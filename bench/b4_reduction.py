@@ -70,9 +70,9 @@ ROAR_CASES = [("faulty/mutual_make.roar", "arm::started == true", None),
 def _roar_cases():
     """Compiled ROAR models (functional layer as outcome rules), with their start states."""
     from roar_formal.clf.signature import ExecDirective
-    from roar_formal.roar.commands import functional_module, load_registry
+    from roar_formal.roar.functional import functional_module, load_registry
     from roar_formal.roar.compile import compile_spec
-    from roar_formal.roar.parser import load_spec
+    from roar_formal.roar.spec import load_spec
 
     for spec, request, fn in ROAR_CASES:
         path = ROOT / "models" / spec
@@ -150,7 +150,7 @@ def _run(repeats: int, quick: bool) -> dict:
 def _property_rows(quick: bool):
     """Invariants and livelock without fairness, with and without reduction."""
     from roar_formal.clf.program import Program
-    from roar_formal.explore.check import make_never
+    from roar_formal.verify.check import make_never
     from roar_formal.explore.properties import check_livelock, check_states
     from roar_formal.explore.search import Budget, Explorer
     from roar_formal.explore.system import ClfSystem, Options

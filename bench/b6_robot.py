@@ -41,7 +41,7 @@ CASES = [
 
 
 def _prepare(scenario: str, request: str):
-    from roar_formal.robot.commands import prepare
+    from roar_formal.robot.setup import prepare
     spec_ast, model, binding, sc = prepare(SPEC, request, ROOT / "models" / "scenarios" / scenario)
     model.program()   # compile once, outside the timing
     return model, binding, sc

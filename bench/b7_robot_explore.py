@@ -32,8 +32,8 @@ ABSTRACT_STATES = 20_000
 
 
 def _robot(path: Path) -> dict:
-    from roar_formal.explore.check import run_job
-    from roar_formal.explore.jobs import load_job
+    from roar_formal.verify.check import run_job
+    from roar_formal.verify.jobs import load_job
     job = load_job(path)
     job.robot.compare = False
     t = time.perf_counter()
@@ -46,8 +46,8 @@ def _robot(path: Path) -> dict:
 
 
 def _abstract(path: Path, max_states: int) -> dict:
-    from roar_formal.explore.check import run_job
-    from roar_formal.explore.jobs import load_job
+    from roar_formal.verify.check import run_job
+    from roar_formal.verify.jobs import load_job
     job = copy.copy(load_job(path))
     job.robot = None
     job.expect = {}

@@ -31,13 +31,13 @@ def one(job_path: str, max_states: int | None, max_seconds: float | None) -> dic
 
     def go() -> dict:
         from roar_formal.clf.signature import ExecDirective
-        from roar_formal.explore.jobs import load_job
+        from roar_formal.verify.jobs import load_job
         from roar_formal.explore.search import Budget, Explorer
         from roar_formal.explore.system import Options
-        from roar_formal.roar.commands import functional_module, load_registry
+        from roar_formal.roar.functional import functional_module, load_registry
         from roar_formal.roar.compile import compile_spec
         from roar_formal.roar.explore import PROGRESS_RULES, RoarSystem
-        from roar_formal.roar.parser import load_spec
+        from roar_formal.roar.spec import load_spec
 
         t0 = time.perf_counter()
         job = load_job(Path(job_path))

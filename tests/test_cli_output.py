@@ -101,9 +101,24 @@ def test_every_console_of_the_package_comes_from_make_console():
     package = ROOT / "roar_formal"
     found = []
     for f in package.rglob("*.py"):
-        if f.name == "console.py" and f.parent == package:
+        if f.name == "console.py" and f.parent == package / "cli":
             continue
         for n, text in enumerate(f.read_text(encoding="utf-8").splitlines(), 1):
             if re.search(r"\bConsole\(", text):
                 found.append(f"{f.relative_to(ROOT)}:{n}: {text.strip()}")
-    assert not found, "construct consoles with roar_formal.console.make_console:\n" + "\n".join(found)
+    assert not found, "construct consoles with roar_formal.cli.console.make_console:\n" + "\n".join(found)
+
+
+def test_shell_completion_names_commands_and_options():
+    """`roar-verify --show-completion` (in bash) prints a script for `roar-verify`; the script's
+    protocol completes command names and a command's options."""
+    import os
+    script = subprocess.run([sys.executable, "-m", "roar_formal", "--show-completion"], capture_output=True,
+                            text=True, timeout=60, env={**os.environ, "SHELL": "/bin/bash"})
+    assert script.returncode == 0 and "_roar_verify_completion()" in script.stdout
+    env = {**os.environ, "_ROAR_VERIFY_COMPLETE": "complete_bash", "COMP_WORDS": "roar-verify ch", "COMP_CWORD": "1"}
+    r = subprocess.run([sys.executable, "-m", "roar_formal"], capture_output=True, text=True, env=env, timeout=60)
+    assert r.stdout.split() == ["check"]
+    env.update(COMP_WORDS="roar-verify check --max", COMP_CWORD="2")
+    r = subprocess.run([sys.executable, "-m", "roar_formal"], capture_output=True, text=True, env=env, timeout=60)
+    assert set(r.stdout.split()) == {"--max-states", "--max-seconds"}

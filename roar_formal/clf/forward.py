@@ -22,7 +22,7 @@ from typing import Callable, Iterator, Optional
 from .builtins import BUILTINS
 from .context import Context, CtxRule
 from .rules import AFF, LIN, PERS, Template, positive_parts
-from .terms import BVar, Const, EVar, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, zonk, _map_bvars, bvar
+from .terms import BVar, Const, EVar, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, zonk, map_bvars, bvar
 
 # ------------------------------------------------------------------ matching
 
@@ -110,7 +110,7 @@ def _ho_solve(args: tuple, t: Node) -> Optional[Node]:
         raise Escape
 
     try:
-        body = _map_bvars(t, 0, fn) if t.maxb else t
+        body = map_bvars(t, 0, fn) if t.maxb else t
     except Escape:
         return None
     for _ in range(n):
@@ -1034,7 +1034,7 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
         if not need <= paths:
             continue
         for bindings, consumed in all_matches(ctx, t, [None] * t.nslots, prover, first_only):
-            key = (id(t), bindings, _multiset_key(consumed))
+            key = (id(t), bindings, multiset_key(consumed))
             if key not in seen:
                 seen.add(key)
                 yield Choice(t, None, bindings, consumed)
@@ -1217,7 +1217,7 @@ def _context_paths(ctx: Context) -> set:
     return out
 
 
-def _multiset_key(consumed) -> tuple:
+def multiset_key(consumed) -> tuple:
     """The consumed facts as a multiset, independent of the order premises were matched in."""
     return tuple(sorted((m, id(t)) for m, t in consumed))
 

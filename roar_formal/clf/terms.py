@@ -532,7 +532,7 @@ def shift(t: Node, by: int, cutoff: int = 0) -> Node:
     """Raise loose de Bruijn indices >= cutoff by ``by``."""
     if by == 0 or t.maxb <= cutoff:
         return t
-    return _map_bvars(t, cutoff, lambda i, depth: bvar(i + by))
+    return map_bvars(t, cutoff, lambda i, depth: bvar(i + by))
 
 
 def subst(t: Node, vals: list, depth: int = 0) -> Node:
@@ -591,7 +591,7 @@ def _map_type(t: TypeNode, d: int, go) -> Node:
     return cls(*vals)
 
 
-def _map_bvars(t: Node, cutoff: int, fn) -> Node:
+def map_bvars(t: Node, cutoff: int, fn) -> Node:
     memo: dict = {}
 
     def go(t: Node, d: int) -> Node:

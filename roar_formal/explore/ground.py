@@ -31,7 +31,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..clf.context import Context
-from ..clf.forward import _multiset_key, enabled_steps, fire
+from ..clf.forward import multiset_key, enabled_steps, fire
 from ..clf.program import Program
 from ..clf.rules import AFF, LIN, PERS
 from .graph import Interner, StateGraph
@@ -121,7 +121,7 @@ class GroundModel:
                 work += 1
                 if not work & 63:
                     self._check_budget(work)
-                key = (id(choice.template), choice.bindings, _multiset_key(choice.consumed))
+                key = (id(choice.template), choice.bindings, multiset_key(choice.consumed))
                 if key in seen_inst:
                     continue
                 seen_inst.add(key)
@@ -275,166 +275,195 @@ class GroundExplorer:
     def _run(self, budget: Budget) -> StateGraph:
         t0 = time.perf_counter()
         start_row = self.model.start_row[self.var_cols][None, :].astype(np.int16)
-        keys = [[w] for w in self._pack(start_row)]  # per word: list of chunks, in id order
-        start_words = [k[0] for k in keys]
-        vis_mix = self._mix(start_words)
-        vis_id = np.zeros(1, dtype=np.int64)
-        all_words = [w.copy() for w in start_words]  # flat per-word arrays (grown per level)
-        parent = [np.full(1, -1, dtype=np.int32)]
-        parent_edge = [np.full(1, -1, dtype=np.int64)]
-        depth = [np.zeros(1, dtype=np.int32)]
-        e_src, e_dst, e_inst = [], [], []
-        n_states, n_edges = 1, 0
-        f_ids = np.zeros(1, dtype=np.int64)
-        f_rows = start_row
-        f_words = start_words
-        level = 0
+        s = _Search(start_row, self._pack(start_row), self._mix)
         complete, stop = True, ""
         expanded_upto = 0
-        cap = self.cap
-        while len(f_ids):
-            if budget.max_states is not None and n_states >= budget.max_states:
-                complete, stop = False, f"state budget of {budget.max_states} reached"
+        while len(s.f_ids):
+            stop = self._budget_stop(budget, t0, s.n_states)
+            if stop:
+                complete = False
                 break
-            if budget.max_seconds is not None and time.perf_counter() - t0 >= budget.max_seconds:
-                complete, stop = False, f"time budget of {budget.max_seconds:g} s reached"
+            srcs, insts = self._enabled(s.f_rows, len(s.f_ids))
+            stop = self._level_memory_stop(budget, srcs, s.n_states)
+            if stop:
+                complete = False
                 break
-            if budget.max_memory_mb is not None and current_rss_mb() > budget.max_memory_mb:
-                complete, stop = False, f"memory budget of {budget.max_memory_mb:g} MiB reached"
-                break
-            srcs, insts = [], []
-            for i, pairs in enumerate(self.needs):
-                if pairs is None:
-                    continue
-                mask = None
-                for c, k in pairs:
-                    m = f_rows[:, c] >= k
-                    mask = m if mask is None else (mask & m)
-                idx = np.flatnonzero(mask) if mask is not None else np.arange(len(f_ids))
-                if not len(idx):
-                    continue
-                for c, _k in self.produced[i]:
-                    if int(f_rows[idx, c].max()) + int(self.delta[i, c]) > cap:
-                        raise Overflow
-                srcs.append(idx)
-                insts.append(np.full(len(idx), i, dtype=np.int16))
-            if budget.max_memory_mb is not None and srcs:
-                # what this level will take before it can be given back: the candidate
-                # transitions' words, hashes and indices, the copies the visited arrays make
-                # when they grow, and the edge arrays of the graph
-                n_cand = sum(len(x) for x in srcs)
-                need = (n_cand * (16 * self.nwords + 136) + n_states * (16 + 8 * self.nwords)) / 1048576.0
-                now_mb = current_rss_mb()
-                if now_mb + need > budget.max_memory_mb:
-                    complete, stop = False, (f"memory budget of {budget.max_memory_mb:g} MiB reached (the next "
-                                             f"level, {n_cand:,} transitions, needs about {need:,.0f} MiB more)")
-                    break
-            expanded_upto = int(f_ids[-1]) + 1
+            expanded_upto = int(s.f_ids[-1]) + 1
             if not srcs:
-                f_ids = f_ids[:0]
                 break
-            src_local = np.concatenate(srcs)
-            inst = np.concatenate(insts)
-            order = np.lexsort((inst, src_local))  # discovery order: by source, then instance
-            src_local, inst = src_local[order], inst[order]
-            with np.errstate(over="ignore"):
-                words = [f_words[w][src_local] + self.word_delta[w][inst] for w in range(self.nwords)]
-            mix = self._mix(words)
-            # search in sorted order: sequential access into the big visited array
-            so = np.argsort(mix)
-            pos = np.empty(len(mix), dtype=np.int64)
-            pos[so] = np.searchsorted(vis_mix, mix[so])
-            np.minimum(pos, len(vis_mix) - 1, out=pos)
-            cand = vis_id[pos]
-            found = vis_mix[pos] == mix
-            for w in range(self.nwords):
-                found &= all_words[w][cand] == words[w]
-            dst = np.where(found, cand, -1)
-            # rare: same mix, different state, not at the searched position: resolve exactly
-            suspect = np.flatnonzero(~found & (vis_mix[pos] == mix))
-            for t in suspect.tolist():
-                lo = np.searchsorted(vis_mix, mix[t], side="left")
-                hi = np.searchsorted(vis_mix, mix[t], side="right")
-                for j in range(lo, hi):
-                    sid = int(vis_id[j])
-                    if all(all_words[w][sid] == words[w][t] for w in range(self.nwords)):
-                        dst[t] = sid
-                        break
-            new_tr = np.flatnonzero(dst < 0)
-            if len(new_tr):
-                # exact dedupe of the new states: sort by all words, mark run starts
-                nw = [w[new_tr] for w in words]
-                o = np.lexsort(tuple(reversed(nw)))
-                starts = np.ones(len(o), dtype=bool)
-                if len(o) > 1:
-                    same = np.ones(len(o) - 1, dtype=bool)
-                    for w in nw:
-                        ws = w[o]
-                        same &= ws[1:] == ws[:-1]
-                    starts[1:] = ~same
-                grp_id = np.cumsum(starts) - 1  # group of each sorted candidate
-                n_new = int(grp_id[-1]) + 1
-                # first transition (in discovery order) of each group
-                first = np.full(n_new, len(o), dtype=np.int64)
-                np.minimum.at(first, grp_id, o)
-                rank_order = np.argsort(first, kind="stable")
-                rank = np.empty(n_new, dtype=np.int64)
-                rank[rank_order] = np.arange(n_new)
-                grp_of_cand = np.empty(len(o), dtype=np.int64)
-                grp_of_cand[o] = grp_id
-                new_ids = n_states + rank[grp_of_cand]
-                dst[new_tr] = new_ids
-                first_tr = new_tr[first[rank_order]]  # creating transition of each new state, id order
-                new_words = [w[first_tr] for w in words]
-                new_rows = f_rows[src_local[first_tr]] + self.delta[inst[first_tr]].astype(np.int16)
-                parent.append(f_ids[src_local[first_tr]].astype(np.int32))
-                parent_edge.append(n_edges + first_tr)
-                depth.append(np.full(n_new, level + 1, dtype=np.int32))
-                nmix = self._mix(new_words)
-                so = np.argsort(nmix, kind="stable")
-                ins = np.searchsorted(vis_mix, nmix[so])
-                vis_mix = np.insert(vis_mix, ins, nmix[so])
-                vis_id = np.insert(vis_id, ins, (n_states + np.arange(n_new))[so])
-                all_words = [np.concatenate([all_words[w], new_words[w]]) for w in range(self.nwords)]
-                next_ids = n_states + np.arange(n_new)
-                n_states += n_new
-            else:
-                next_ids = np.zeros(0, dtype=np.int64)
-                new_rows = f_rows[:0]
-                new_words = [w[:0] for w in words]
-            e_src.append(f_ids[src_local].astype(np.int32))
-            e_dst.append(dst.astype(np.int32))
-            e_inst.append(inst)
-            n_edges += len(dst)
-            # column-major: the enabledness tests read whole columns
-            f_ids, f_rows, f_words = next_ids, np.asfortranarray(new_rows), new_words
-            level += 1
+            self._expand_level(s, srcs, insts)
             if self.on_progress is not None:
                 el = time.perf_counter() - t0
-                self.on_progress({"states": n_states, "transitions": n_edges, "frontier": len(f_ids),
-                                  "seconds": el, "states_per_s": n_states / max(el, 1e-9),
+                self.on_progress({"states": s.n_states, "transitions": s.n_edges, "frontier": len(s.f_ids),
+                                  "seconds": el, "states_per_s": s.n_states / max(el, 1e-9),
                                   "memory_mb": current_rss_mb()})
         if complete:
-            expanded_upto = n_states
+            expanded_upto = s.n_states
+        g = self._graph(s, complete, stop, expanded_upto)
+        self.seconds = time.perf_counter() - t0
+        return g
+
+    @staticmethod
+    def _budget_stop(budget: Budget, t0: float, n_states: int) -> str:
+        """Why the search stops before the next level ("" to go on): a state, time or memory budget."""
+        if budget.max_states is not None and n_states >= budget.max_states:
+            return f"state budget of {budget.max_states} reached"
+        if budget.max_seconds is not None and time.perf_counter() - t0 >= budget.max_seconds:
+            return f"time budget of {budget.max_seconds:g} s reached"
+        if budget.max_memory_mb is not None and current_rss_mb() > budget.max_memory_mb:
+            return f"memory budget of {budget.max_memory_mb:g} MiB reached"
+        return ""
+
+    def _enabled(self, f_rows: np.ndarray, n: int) -> tuple[list, list]:
+        """The transitions of a frontier of ``n`` states: per enabled instance, the frontier
+        positions where it is enabled and the instance number repeated (raises :class:`Overflow`
+        when a produced count would outgrow its bits)."""
+        cap = self.cap
+        srcs, insts = [], []
+        for i, pairs in enumerate(self.needs):
+            if pairs is None:
+                continue
+            mask = None
+            for c, k in pairs:
+                m = f_rows[:, c] >= k
+                mask = m if mask is None else (mask & m)
+            idx = np.flatnonzero(mask) if mask is not None else np.arange(n)
+            if not len(idx):
+                continue
+            for c, _k in self.produced[i]:
+                if int(f_rows[idx, c].max()) + int(self.delta[i, c]) > cap:
+                    raise Overflow
+            srcs.append(idx)
+            insts.append(np.full(len(idx), i, dtype=np.int16))
+        return srcs, insts
+
+    def _level_memory_stop(self, budget: Budget, srcs: list, n_states: int) -> str:
+        """Why the next level would not fit the memory budget ("" when it fits, or has no budget)."""
+        if budget.max_memory_mb is None or not srcs:
+            return ""
+        # what this level will take before it can be given back: the candidate
+        # transitions' words, hashes and indices, the copies the visited arrays make
+        # when they grow, and the edge arrays of the graph
+        n_cand = sum(len(x) for x in srcs)
+        need = (n_cand * (16 * self.nwords + 136) + n_states * (16 + 8 * self.nwords)) / 1048576.0
+        now_mb = current_rss_mb()
+        if now_mb + need > budget.max_memory_mb:
+            return (f"memory budget of {budget.max_memory_mb:g} MiB reached (the next "
+                    f"level, {n_cand:,} transitions, needs about {need:,.0f} MiB more)")
+        return ""
+
+    def _expand_level(self, s: "_Search", srcs: list, insts: list) -> None:
+        """Take every transition of the frontier: record its edges, add the new states, and make
+        them the next frontier."""
+        src_local = np.concatenate(srcs)
+        inst = np.concatenate(insts)
+        order = np.lexsort((inst, src_local))  # discovery order: by source, then instance
+        src_local, inst = src_local[order], inst[order]
+        with np.errstate(over="ignore"):
+            words = [s.f_words[w][src_local] + self.word_delta[w][inst] for w in range(self.nwords)]
+        dst = self._visited_ids(s, words)
+        new_tr = np.flatnonzero(dst < 0)
+        if len(new_tr):
+            next_ids, new_rows, new_words = self._add_new_states(s, dst, new_tr, words, src_local, inst)
+        else:
+            next_ids = np.zeros(0, dtype=np.int64)
+            new_rows = s.f_rows[:0]
+            new_words = [w[:0] for w in words]
+        s.e_src.append(s.f_ids[src_local].astype(np.int32))
+        s.e_dst.append(dst.astype(np.int32))
+        s.e_inst.append(inst)
+        s.n_edges += len(dst)
+        # column-major: the enabledness tests read whole columns
+        s.f_ids, s.f_rows, s.f_words = next_ids, np.asfortranarray(new_rows), new_words
+        s.level += 1
+
+    def _visited_ids(self, s: "_Search", words: list) -> np.ndarray:
+        """The id of each target state (its exact words) among the visited states, -1 if new."""
+        mix = self._mix(words)
+        # search in sorted order: sequential access into the big visited array
+        so = np.argsort(mix)
+        pos = np.empty(len(mix), dtype=np.int64)
+        pos[so] = np.searchsorted(s.vis_mix, mix[so])
+        np.minimum(pos, len(s.vis_mix) - 1, out=pos)
+        cand = s.vis_id[pos]
+        found = s.vis_mix[pos] == mix
+        for w in range(self.nwords):
+            found &= s.all_words[w][cand] == words[w]
+        dst = np.where(found, cand, -1)
+        # rare: same mix, different state, not at the searched position: resolve exactly
+        suspect = np.flatnonzero(~found & (s.vis_mix[pos] == mix))
+        for t in suspect.tolist():
+            lo = np.searchsorted(s.vis_mix, mix[t], side="left")
+            hi = np.searchsorted(s.vis_mix, mix[t], side="right")
+            for j in range(lo, hi):
+                sid = int(s.vis_id[j])
+                if all(s.all_words[w][sid] == words[w][t] for w in range(self.nwords)):
+                    dst[t] = sid
+                    break
+        return dst
+
+    def _add_new_states(self, s: "_Search", dst: np.ndarray, new_tr: np.ndarray, words: list,
+                        src_local: np.ndarray, inst: np.ndarray) -> tuple:
+        """Number the distinct new targets of transitions ``new_tr`` in discovery order, fill in
+        their ids in ``dst``, add them to the visited set with their parent, creating edge and
+        depth; (their ids, rows, words)."""
+        # exact dedupe of the new states: sort by all words, mark run starts
+        nw = [w[new_tr] for w in words]
+        o = np.lexsort(tuple(reversed(nw)))
+        starts = np.ones(len(o), dtype=bool)
+        if len(o) > 1:
+            same = np.ones(len(o) - 1, dtype=bool)
+            for w in nw:
+                ws = w[o]
+                same &= ws[1:] == ws[:-1]
+            starts[1:] = ~same
+        grp_id = np.cumsum(starts) - 1  # group of each sorted candidate
+        n_new = int(grp_id[-1]) + 1
+        # first transition (in discovery order) of each group
+        first = np.full(n_new, len(o), dtype=np.int64)
+        np.minimum.at(first, grp_id, o)
+        rank_order = np.argsort(first, kind="stable")
+        rank = np.empty(n_new, dtype=np.int64)
+        rank[rank_order] = np.arange(n_new)
+        grp_of_cand = np.empty(len(o), dtype=np.int64)
+        grp_of_cand[o] = grp_id
+        n_states = s.n_states
+        dst[new_tr] = n_states + rank[grp_of_cand]
+        first_tr = new_tr[first[rank_order]]  # creating transition of each new state, id order
+        new_words = [w[first_tr] for w in words]
+        new_rows = s.f_rows[src_local[first_tr]] + self.delta[inst[first_tr]].astype(np.int16)
+        s.parent.append(s.f_ids[src_local[first_tr]].astype(np.int32))
+        s.parent_edge.append(s.n_edges + first_tr)
+        s.depth.append(np.full(n_new, s.level + 1, dtype=np.int32))
+        nmix = self._mix(new_words)
+        so = np.argsort(nmix, kind="stable")
+        ins = np.searchsorted(s.vis_mix, nmix[so])
+        s.vis_mix = np.insert(s.vis_mix, ins, nmix[so])
+        s.vis_id = np.insert(s.vis_id, ins, (n_states + np.arange(n_new))[so])
+        s.all_words = [np.concatenate([s.all_words[w], new_words[w]]) for w in range(self.nwords)]
+        s.n_states = n_states + n_new
+        return n_states + np.arange(n_new), new_rows, new_words
+
+    def _graph(self, s: "_Search", complete: bool, stop: str, expanded_upto: int) -> StateGraph:
+        """The state graph of the search (and what describing its states and edges needs)."""
         g = StateGraph()
-        g.parent = np.concatenate(parent)
-        g.parent_edge = np.concatenate(parent_edge)
-        g.depth = np.concatenate(depth)
-        g.expanded = (np.arange(n_states) < expanded_upto).astype(np.int8)
-        g.src = np.concatenate(e_src) if e_src else np.zeros(0, np.int32)
-        g.dst = np.concatenate(e_dst) if e_dst else np.zeros(0, np.int32)
-        inst_all = np.concatenate(e_inst) if e_inst else np.zeros(0, np.int16)
-        del e_src, e_dst, e_inst
+        g.parent = np.concatenate(s.parent)
+        g.parent_edge = np.concatenate(s.parent_edge)
+        g.depth = np.concatenate(s.depth)
+        g.expanded = (np.arange(s.n_states) < expanded_upto).astype(np.int8)
+        g.src = np.concatenate(s.e_src) if s.e_src else np.zeros(0, np.int32)
+        g.dst = np.concatenate(s.e_dst) if s.e_dst else np.zeros(0, np.int32)
+        inst_all = np.concatenate(s.e_inst) if s.e_inst else np.zeros(0, np.int16)
+        s.e_src, s.e_dst, s.e_inst = [], [], []
         g.label = self.inst_label[inst_all]
         g.group = self.inst_group[inst_all]
         g.progress = self.inst_progress[inst_all].astype(np.int8)
         g.labels, g.groups = self.labels, self.groups
         g.complete, g.stop_reason = complete, stop
-        self.words = all_words
+        self.words = s.all_words
         self.edge_inst = inst_all
         g.describe_state = self.describe_state
         g.describe_edge = self.describe_edge
-        self.seconds = time.perf_counter() - t0
         return g
 
     def row_of(self, sid: int) -> np.ndarray:
@@ -456,3 +485,24 @@ class GroundExplorer:
             mode, t = self.model.facts[c]
             out += [{"1": "", "@": "@", "!": "!"}[mode] + self.model.program.show(t)] * k
         return out
+
+
+class _Search:
+    """The search so far: the visited states (sorted mixes with their ids, exact words per id,
+    parent, creating edge and depth per id), the edges, and the frontier (ids, rows, words)."""
+
+    def __init__(self, start_row: np.ndarray, start_words: list, mix: Callable):
+        self.vis_mix = mix(start_words)
+        self.vis_id = np.zeros(1, dtype=np.int64)
+        self.all_words = [w.copy() for w in start_words]  # flat per-word arrays (grown per level)
+        self.parent = [np.full(1, -1, dtype=np.int32)]
+        self.parent_edge = [np.full(1, -1, dtype=np.int64)]
+        self.depth = [np.zeros(1, dtype=np.int32)]
+        self.e_src: list = []
+        self.e_dst: list = []
+        self.e_inst: list = []
+        self.n_states, self.n_edges = 1, 0
+        self.f_ids = np.zeros(1, dtype=np.int64)
+        self.f_rows = start_row
+        self.f_words = start_words
+        self.level = 0

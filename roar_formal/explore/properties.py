@@ -52,7 +52,7 @@ class Verdict:
         return self.status == "violated"
 
 
-def _incomplete(prop: str, g: StateGraph) -> Verdict:
+def incomplete_note(prop: str, g: StateGraph) -> Verdict:
     return Verdict(prop, "incomplete",
                    f"no {prop} in {g.n_states:,} states; search incomplete ({g.stop_reason})")
 
@@ -69,7 +69,7 @@ def check_states(g: StateGraph, prop: str, bad: Callable[[int], Optional[str]]) 
             cx = Counterexample("path", g.path_to(s), final_state=s)
             return Verdict(prop, "violated", f"{why} (reached in {len(cx.prefix)} steps)", cx, {"reason": why})
     if not g.complete:
-        return _incomplete(prop, g)
+        return incomplete_note(prop, g)
     return Verdict(prop, "holds", f"no violation in {g.n_states:,} states")
 
 
@@ -95,7 +95,7 @@ def check_deadlock(g: StateGraph, accept: Optional[Callable[[int], bool]] = None
                        f"{'s' if n_dead != 1 else ''} among {g.n_states:,} states)",
                        cx, {"deadlock_states": n_dead, "final_states": n_final})
     if not g.complete:
-        return _incomplete("deadlock", g)
+        return incomplete_note("deadlock", g)
     return Verdict("deadlock", "holds", f"no deadlock in {g.n_states:,} states ({n_final} accepted final)",
                    details={"final_states": n_final})
 
@@ -103,7 +103,7 @@ def check_deadlock(g: StateGraph, accept: Optional[Callable[[int], bool]] = None
 # ---------------------------------------------------------------- livelock
 
 
-def _scc(n: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+def strongly_connected(n: int, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """Strongly connected component label of each node."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import connected_components
@@ -136,59 +136,109 @@ def fair_components(g: StateGraph, comp, base, cand_edges, src, grp):
     return member, cand_comps[~starving[cand_comps]], ci, always
 
 
-def check_livelock(g: StateGraph) -> Verdict:
-    """A fair cycle without progress, as a lasso; none on a complete graph means none at all."""
+def strong_fair_components(g: StateGraph, inner: np.ndarray, src, dst, grp, allowed: np.ndarray):
+    """The strongly fair components of the subgraph of ``inner`` edges (Emerson and Lei): in a
+    component, every fairness group enabled at *any* of its states must move on one of its
+    edges. States that enable a group which never moves in their component cannot be on a
+    strongly fair cycle: they are removed and the components recomputed, until a fair one is
+    found or none is left. Same return shape as :func:`fair_components`, with the groups
+    enabled anywhere in each component as the last item."""
+    n = g.n_states
+    n_groups = max(1, len(g.groups.names))
+    allowed = allowed.copy()
+    pairs = g.enabled_pairs(n_groups)
+    pstate, pgroup = pairs // n_groups, pairs % n_groups
+    while True:
+        live = inner & allowed[src] & allowed[np.minimum(dst, n - 1)] & (dst < n)
+        isrc, idst = src[live], dst[live]
+        if len(isrc) == 0:
+            return None
+        comp = strongly_connected(n, isrc, idst)
+        internal = comp[isrc] == comp[idst]
+        cand_edges = np.flatnonzero(live)[internal]
+        if len(cand_edges) == 0:
+            return None
+        ci = comp[src[cand_edges]]
+        n_comp = int(comp.max()) + 1
+        is_cand = np.zeros(n_comp, dtype=bool)
+        is_cand[ci] = True
+        member = allowed & is_cand[comp]
+        here = member[pstate]
+        enabled = np.zeros((n_comp, n_groups), dtype=bool)
+        enabled[comp[pstate[here]], pgroup[here]] = True
+        moving = np.zeros((n_comp, n_groups), dtype=bool)
+        moving[ci, grp[cand_edges]] = True
+        bad = enabled & ~moving
+        cand_comps = np.unique(ci)
+        fair = cand_comps[~bad[cand_comps].any(axis=1)]
+        if len(fair):
+            return member, fair, ci, enabled, comp, cand_edges
+        drop = here & bad[comp[pstate], pgroup]
+        allowed[pstate[drop]] = False
+
+
+def check_livelock(g: StateGraph, strong: bool = False) -> Verdict:
+    """A fair cycle without progress, as a lasso; none on a complete graph means none at all.
+    Fairness is weak by default (a group enabled all along the cycle moves on it); ``strong``:
+    a group enabled infinitely often moves infinitely often."""
     a = g.arrays()
     n = g.n_states
     expanded = np.asarray(g.expanded, dtype=bool)
     src, dst, grp, prog = a["src"], a["dst"], a["group"], a["progress"]
     inner = ~prog & expanded[src] & (dst < n)
     inner &= expanded[np.minimum(dst, n - 1)]
-    isrc, idst = src[inner], dst[inner]
-    if len(isrc) == 0:
-        return _no_livelock(g)
-    comp = _scc(n, isrc, idst)
-    internal = comp[isrc] == comp[idst]
-    cand_edges = np.flatnonzero(inner)[internal]
-    if len(cand_edges) == 0:
-        return _no_livelock(g)
-    # Per candidate component: groups enabled in every member state (by an outgoing edge,
-    # progress or not, or by a step a reduced expansion left out) must all move inside it.
-    # Vectorised over all components at once.
-    member, fair, ci, always = fair_components(g, comp, expanded, cand_edges, src, grp)
-    best = None
-    if len(fair):
-        depth = np.asarray(g.depth, dtype=np.int64)
-        # the fair component holding the shallowest state: shortest prefix
-        fm = np.flatnonzero(member & np.isin(comp, fair))
-        entry = int(fm[np.argmin(depth[fm])])
-        c = comp[entry]
-        edges_c = cand_edges[ci == c]
-        best = (int(depth[entry]), c, entry, edges_c, set(np.flatnonzero(always[c]).tolist()))
-    if best is None:
-        return _no_livelock(g, unfair=True)
-    _, c, entry, edges_c, always = best
-    cycle = _tour(g, entry, edges_c, always, src, dst, grp)
+    if strong:
+        found = strong_fair_components(g, inner, src, dst, grp, expanded)
+        if found is None:
+            return _no_livelock(g, unfair=bool(inner.any()), strong=True)
+        member, fair, ci, required, comp, cand_edges = found
+    else:
+        isrc, idst = src[inner], dst[inner]
+        if len(isrc) == 0:
+            return _no_livelock(g)
+        comp = strongly_connected(n, isrc, idst)
+        internal = comp[isrc] == comp[idst]
+        cand_edges = np.flatnonzero(inner)[internal]
+        if len(cand_edges) == 0:
+            return _no_livelock(g)
+        # Per candidate component: groups enabled in every member state (by an outgoing edge,
+        # progress or not, or by a step a reduced expansion left out) must all move inside it.
+        # Vectorised over all components at once.
+        member, fair, ci, required = fair_components(g, comp, expanded, cand_edges, src, grp)
+    if not len(fair):
+        return _no_livelock(g, unfair=True, strong=strong)
+    depth = np.asarray(g.depth, dtype=np.int64)
+    # the fair component holding the shallowest state: shortest prefix
+    fm = np.flatnonzero(member & np.isin(comp, fair))
+    entry = int(fm[np.argmin(depth[fm])])
+    c = comp[entry]
+    edges_c = cand_edges[ci == c]
+    cycle = cycle_tour(g, entry, edges_c, set(np.flatnonzero(required[c]).tolist()), src, dst, grp, strong)
     cx = Counterexample("lasso", g.path_to(entry), cycle, final_state=entry)
     names = sorted(g.groups.names[x] for x in set(grp[edges_c].tolist()))
+    kind = "strongly fair" if strong else "fair"
     return Verdict("livelock", "violated",
-                   f"fair livelock: a cycle of {len(cycle)} steps without progress, reached in "
+                   f"{kind} livelock: a cycle of {len(cycle)} steps without progress, reached in "
                    f"{len(cx.prefix)} steps (groups moving: {', '.join(names)})",
                    cx, {"cycle_states": int(np.sum(comp == c))})
 
 
-def _no_livelock(g: StateGraph, unfair: bool = False) -> Verdict:
+def _no_livelock(g: StateGraph, unfair: bool = False, strong: bool = False) -> Verdict:
     if not g.complete:
-        return _incomplete("livelock", g)
-    extra = " (cycles without progress exist but are all unfair)" if unfair else ""
-    return Verdict("livelock", "holds", f"no fair livelock in {g.n_states:,} states{extra}",
-                   details={"unfair_cycles": unfair})
+        return incomplete_note("livelock", g)
+    kind = "strongly fair" if strong else "fair"
+    extra = f" (cycles without progress exist but are all {'strongly ' if strong else ''}unfair)" if unfair else ""
+    return Verdict("livelock", "holds", f"no {kind} livelock in {g.n_states:,} states{extra}",
+                   details={"unfair_cycles": unfair, "fairness": "strong" if strong else "weak"})
 
 
-def _tour(g: StateGraph, entry: int, edges_c: np.ndarray, required: set, src, dst, grp) -> list[int]:
+def cycle_tour(g: StateGraph, entry: int, edges_c: np.ndarray, required: set, src, dst, grp,
+               strong: bool = False) -> list[int]:
     """A fair cycle from ``entry`` inside the component: start from any cycle, then splice
     in detours until every group enabled all along it either moves or meets a state
-    where it is disabled (terminates: each detour fixes one group for good)."""
+    where it is disabled (terminates: each detour fixes one group for good). ``strong``:
+    every group enabled at any state of the cycle must move (the component guarantees each
+    such group has an edge in it)."""
     adj: dict[int, list[int]] = {}
     for e in edges_c.tolist():
         adj.setdefault(int(src[e]), []).append(e)
@@ -227,7 +277,10 @@ def _tour(g: StateGraph, entry: int, edges_c: np.ndarray, required: set, src, ds
     while True:
         states = [int(src[e]) for e in cycle]
         moving = {int(grp[e]) for e in cycle}
-        always = set.intersection(*(enabled[x] for x in states))
+        if strong:
+            always = set.union(*(enabled[x] for x in states))
+        else:
+            always = set.intersection(*(enabled[x] for x in states))
         starving = sorted(always - moving)
         if not starving:
             return cycle

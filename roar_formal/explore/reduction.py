@@ -247,6 +247,16 @@ class Reducer:
         # is always sound): the analysis must cost less than the states it saves
         self.max_abstract = 300
         self.max_seeds = 4
+        # closures from a template that keep growing past max_abstract are not tried again, and
+        # a reducer that has reduced no state after `give_up_after` tries stops analysing (full
+        # expansion is always sound; the analysis must not cost more than it saves)
+        self.costly: dict[int, int] = {}   # id(template) -> closures from it abandoned as too costly
+        self.closed: set[int] = set()      # id(template) of seeds whose closure completed once
+        self.max_costly = 8
+        self.give_up_after = 400
+        self.tries = 0
+        self.gave_up = False
+        self.too_costly = False
         # statistics
         self.reduced = 0
         self.full = 0
@@ -255,25 +265,38 @@ class Reducer:
     def choose(self, ctx: Context, choices: list) -> Optional[list[int]]:
         """Indices of a stubborn subset of ``choices`` (the enabled steps of ``ctx``), or None
         for full expansion."""
-        if len(choices) < 2 or not self.analyzable or ctx.rules:
+        if len(choices) < 2 or not self.analyzable or ctx.rules or self.gave_up:
+            return None
+        self.tries += 1
+        if self.tries > self.give_up_after and self.reduced == 0:
+            self.gave_up = True
             return None
         best: Optional[list[int]] = None
         tried = 0
         for seed in range(len(choices)):
             if tried >= self.max_seeds:
                 break
-            tried += 1
             if self.progress is not None and self.progress(choices[seed]):
                 continue  # a set with an enabled progress step must be full: no seed
+            t = id(choices[seed].template)
+            if t not in self.closed and self.costly.get(t, 0) >= self.max_costly:
+                continue  # its closures always grew too large
+            tried += 1
+            self.too_costly = False
             got = self._closure(ctx, choices, seed, len(choices) if best is None else len(best))
+            if self.too_costly:
+                self.costly[t] = self.costly.get(t, 0) + 1
             if got is None:
                 continue
+            self.closed.add(t)
             if best is None or len(got) < len(best):
                 best = got
                 if len(best) == 1:
                     break
         if best is None or len(best) >= len(choices):
+            self.full += 1
             return None
+        self.reduced += 1
         return sorted(best)
 
     def _closure(self, ctx: Context, choices: list, seed: int, limit: int) -> Optional[list[int]]:
@@ -301,8 +324,11 @@ class Reducer:
         for tpl, b in self.always:
             add_abs(tpl, b)
         while work_steps or work_abs:
-            if len(in_set) >= limit or len(seen_abs) > self.max_abstract:
-                return None  # no better than what we have, or too costly to close: expand fully
+            if len(in_set) >= limit:
+                return None  # no better than what we have
+            if len(seen_abs) > self.max_abstract:
+                self.too_costly = True
+                return None  # too costly to close: expand fully
             if work_steps:
                 c = choices[work_steps.pop()]
                 if progress is not None and progress(c):

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Callable, Optional
 
 from .graph import StateGraph
+from .system import TransitionSystem
 
 
 @dataclass
@@ -81,7 +82,8 @@ class MemoryWatch:
 class Explorer:
     """Resumable BFS/DFS that records every state and transition in a :class:`StateGraph`."""
 
-    def __init__(self, system, order: str = "bfs", on_progress: Optional[Callable[[dict], None]] = None):
+    def __init__(self, system: TransitionSystem, order: str = "bfs",
+                 on_progress: Optional[Callable[[dict], None]] = None):
         if order not in ("bfs", "dfs"):
             raise ValueError("order must be 'bfs' or 'dfs'")
         self.system = system

@@ -1,6 +1,7 @@
 """Transition systems the explorer searches: CLF programs seen through the engine.
 
-:class:`ClfSystem` wraps a :class:`~roar_formal.clf.program.Program` and a
+:class:`TransitionSystem` is how the explorer meets a model: it knows nothing
+of ROAR or of the robot. :class:`ClfSystem` wraps a :class:`~roar_formal.clf.program.Program` and a
 start context; its successors are exactly the engine's enumerated steps
 (``Program.steps`` / ``Program.successor``), its states are compared up to
 renaming of fresh names (``canonical_key``). Each step carries a fairness
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 import fnmatch
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Callable, Hashable, Optional, Protocol, Sequence, runtime_checkable
 
 from ..clf.context import Context
 from ..clf.forward import inst
@@ -41,6 +42,34 @@ class Successor:
     progress: bool
     state: Context
     step: object = field(repr=False, default=None)
+
+
+@runtime_checkable
+class TransitionSystem(Protocol):
+    """What the explorer (search.py, properties.py) needs of a model.
+
+    States are opaque to it. ``key`` identifies a state (equal keys, one visited state);
+    each :class:`Successor` names its step, its fairness group (who moved) and whether it is
+    progress; ``reduced_successors`` is a partial-order-reduced expansion: (the chosen
+    successors, a function giving the others or None when none were left out, the others'
+    fairness groups); ``describe``/``describe_step`` say a state
+    and a step in facts and rule names, for counterexamples and traces. A front end (the ROAR
+    compiler's :class:`~roar_formal.roar.explore.RoarSystem`, the robot-backed
+    :class:`~roar_formal.robot.explore.RobotSystem`) supplies one; events in its own terms are
+    its business, not the explorer's."""
+
+    def initial(self) -> Any: ...
+
+    def key(self, state: Any) -> Hashable: ...
+
+    def successors(self, state: Any) -> list["Successor"]: ...
+
+    def reduced_successors(self, state: Any) \
+            -> tuple[list["Successor"], Optional[Callable[[], list["Successor"]]], Sequence[str]]: ...
+
+    def describe(self, state: Any) -> list[str]: ...
+
+    def describe_step(self, step: Any) -> dict: ...
 
 
 class ClfSystem:

@@ -120,8 +120,8 @@ def counterexample_trace() -> str:
     """A real counterexample trace of checker/mutual_make.toml (computed once per process)."""
     import tempfile
 
-    from ..explore.check import run_job, save_counterexample
-    from ..explore.jobs import load_job
+    from ..verify.check import run_job, save_counterexample
+    from ..verify.jobs import load_job
     res = run_job(load_job(ROOT / "checker/mutual_make.toml"))
     with tempfile.TemporaryDirectory() as d:
         return save_counterexample(res, "deadlock", Path(d)).read_text(encoding="utf-8")

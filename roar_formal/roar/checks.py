@@ -3,7 +3,8 @@
 :func:`check_spec` examines the whole spec, collects every problem as a
 :class:`CheckError` (with a position and a short ``code``), and raises one
 :class:`SpecCheckError` listing them all, the first (by position) as its
-message and the others as notes. :func:`spec_errors` returns the list
+message and the others as notes; a spec without problems comes back as a
+:class:`CheckedSpec`, the types the compiler needs included. :func:`spec_errors` returns the list
 instead. :func:`check_request` does the same for a request (a constraint sent
 from outside, e.g. ``demo_loco::pos == demo_loco::goal where demo_loco::goal == 5``).
 
@@ -29,9 +30,11 @@ from typing import Optional, Union
 
 from ..errors import Pos, TypeError_
 from . import ast as a
+from .parser import parse_constraint
 from .pretty import format_expr
 
-__all__ = ["CheckError", "SpecCheckError", "check_spec", "spec_errors", "check_request", "request_errors"]
+__all__ = ["CheckError", "SpecCheckError", "CheckedSpec", "check_spec", "spec_errors", "check_request",
+           "request_errors", "typed_request"]
 
 Ty = Optional[str]  # None: unknown (an error was reported already, or a logic variable)
 STRLIT = "<string literal>"
@@ -121,6 +124,7 @@ class _Checker:
         self.var_types: dict[tuple[str, str], Ty] = {}
         self.fn_sigs: dict[tuple[str, str], tuple[Ty, list[Ty]]] = {}
         self.structs: dict[str, dict[str, Ty]] = {}
+        self.typed: dict[int, tuple[a.Expr, Ty]] = {}   # id(expr) -> (expr, its type)
         for ag in spec.agents:
             self.agents.setdefault(ag.name, ag)
 
@@ -433,6 +437,12 @@ class _Checker:
         return ""
 
     def ty(self, e: a.Expr, sc: _Scope) -> Ty:
+        """The type of ``e`` in scope ``sc``, recorded for the compiler (:class:`CheckedSpec`)."""
+        t = self._type(e, sc)
+        self.typed[id(e)] = (e, t)
+        return t
+
+    def _type(self, e: a.Expr, sc: _Scope) -> Ty:
         if isinstance(e, a.BoolLit):
             return "bool"
         if isinstance(e, a.IntLit):
@@ -612,36 +622,85 @@ class _Checker:
         return "bool"
 
 
+@dataclass
+class CheckedSpec:
+    """A spec that passed the static checks, with what the checks found out about it: what the
+    compiler consumes (it never re-runs a checker).
+
+    ``var_types`` and ``fn_sigs`` are keyed by (agent, name); ``structs`` by ``agent::T`` gives
+    each field's type; :meth:`type_of` is the type of any expression of the spec (or of a request
+    checked with :func:`check_request`) in the scope where it occurs."""
+
+    spec: a.Spec
+    var_types: dict
+    fn_sigs: dict
+    structs: dict
+    typed: dict = field(default_factory=dict, repr=False)
+
+    def __repr__(self) -> str:
+        return f"<checked spec of {', '.join(ag.name for ag in self.spec.agents)}: {len(self.typed)} typed expressions>"
+
+    def type_of(self, e: a.Expr) -> Ty:
+        got = self.typed.get(id(e))
+        if got is None or got[0] is not e:
+            raise KeyError(f"the static checks typed no expression {format_expr(e)!r} (at {e.pos})")
+        return got[1]
+
+    def with_types(self, typed: dict) -> "CheckedSpec":
+        """A copy that also knows the types in ``typed`` (a request's, from :func:`typed_request`)."""
+        return CheckedSpec(self.spec, self.var_types, self.fn_sigs, self.structs, {**self.typed, **typed})
+
+    def same_type(self, new: a.Expr, old: a.Expr) -> None:
+        """``new`` (an expression rewritten from ``old``, e.g. with its names qualified) has ``old``'s type."""
+        if id(old) in self.typed:
+            self.typed[id(new)] = (new, self.typed[id(old)][1])
+
+
+def _checked(c: "_Checker") -> CheckedSpec:
+    return CheckedSpec(c.spec, c.var_types, c.fn_sigs, c.structs, c.typed)
+
+
 def spec_errors(spec: a.Spec) -> list[CheckError]:
     """Every problem the static checks find in ``spec``, sorted by position."""
     return _Checker(spec).run()
 
 
-def check_spec(spec: a.Spec) -> a.Spec:
-    """Raise :class:`SpecCheckError` listing every problem of ``spec``; return the spec when there is none."""
-    errors = spec_errors(spec)
+def check_spec(spec: a.Spec) -> CheckedSpec:
+    """The checked spec; raise :class:`SpecCheckError` listing every problem of ``spec`` if there is any."""
+    c = _Checker(spec)
+    errors = c.run()
     if errors:
         raise SpecCheckError(errors)
-    return spec
+    return _checked(c)
 
 
 def request_errors(spec: a.Spec, request: a.Constraint) -> list[CheckError]:
     """Problems of a request (a constraint from outside the agents): names are ``agent::var``."""
+    return _check_request(spec, request).result()
+
+
+def _check_request(spec: a.Spec, request: a.Constraint) -> "_Checker":
     c = _Checker(spec)
     for ag in c.agents.values():
         c.declarations(ag)
     c.errors.clear()  # the spec's own problems are check_spec's business
-    sc = _Scope(None, frozenset(c.agents))
-    c.constraint(request, sc)
-    return c.result()
+    c.constraint(request, _Scope(None, frozenset(c.agents)))
+    return c
 
 
 def check_request(spec: a.Spec, request: Union[a.Constraint, str]) -> a.Constraint:
     """Check a request (parsed, or text to parse) against ``spec``; raise :class:`SpecCheckError` if wrong."""
+    return typed_request(spec, request)[0]
+
+
+def typed_request(spec: Union[a.Spec, CheckedSpec], request: Union[a.Constraint, str]) \
+        -> tuple[a.Constraint, dict]:
+    """The checked request and the types of its expressions (``id -> (expr, type)``, the form of
+    :attr:`CheckedSpec.typed`); raise :class:`SpecCheckError` if it is wrong."""
     if isinstance(request, str):
-        from .parser import parse_constraint
         request = parse_constraint(request, "<request>")
-    errors = request_errors(spec, request)
+    c = _check_request(spec.spec if isinstance(spec, CheckedSpec) else spec, request)
+    errors = c.result()
     if errors:
         raise SpecCheckError(errors)
-    return request
+    return request, c.typed

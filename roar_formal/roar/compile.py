@@ -32,13 +32,15 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Optional
+from typing import Optional, Union
 
-from ..clf.terms import format_number
+from ..clf.terms import format_number, format_string
 from ..errors import Pos, RoarError, UnsupportedError
 from . import ast as a
-from .checks import _Checker, _Scope, check_request
-from .framework import framework_text
+from .checks import CheckedSpec, typed_request
+from .spec import checked_spec
+from ..clf.program import Program
+from .framework import extend_framework, extend_signature, framework_text, with_framework
 from .functional import DEFAULT_OUTCOMES, Outcome, Registry
 from .pretty import format_expr, format_stmt
 
@@ -66,7 +68,8 @@ def num_lit(x) -> str:
 
 
 def str_lit(s: str) -> str:
-    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    """A string as a CLF literal: the engine's own printing, which its lexer reads back."""
+    return format_string(s)
 
 
 @dataclass
@@ -91,7 +94,7 @@ class CompiledModel:
     """A spec compiled to CLF, with the tables that map CLF names back to the spec."""
 
     spec: a.Spec
-    text: str                        # framework + generated declarations
+    text: str                        # framework + generated declarations (what `roar-verify compile` prints)
     init: str                        # the initial context (a positive type)
     cells: dict[str, tuple[str, str]] = field(default_factory=dict)      # cell -> (agent, var)
     cell_types: dict[str, str] = field(default_factory=dict)             # cell -> type
@@ -109,12 +112,14 @@ class CompiledModel:
     field_types: dict[str, dict[str, str]] = field(default_factory=dict)
     functional: str = "abstract"
     where_cells: dict[str, list[str]] = field(default_factory=dict)      # cst -> cells its where clause writes
+    spec_text: str = ""              # the generated declarations alone (added to the framework's signature)
+    call_sites: dict[str, list] = field(default_factory=dict)   # function const -> positions of its calls
+    candidates: dict[str, list] = field(default_factory=dict)   # cst -> (agent, task) the logic layer proved
 
     def program(self):
         """The CLF program (cached)."""
         if getattr(self, "_program", None) is None:
-            from ..clf.program import Program
-            self._program = Program.from_text(self.text, "<compiled model>")
+            self._program = with_framework(self.spec_text, "<compiled model>")
         return self._program
 
 
@@ -127,12 +132,11 @@ class _Ctx:
     sees every hoisted value, and pops them.
     """
 
-    def __init__(self, comp: "_Compiler", agent: a.Agent, env: list[str], sc: _Scope,
+    def __init__(self, comp: "_Compiler", agent: a.Agent, env: list[str],
                  snapshot: bool = False, run_tasks: bool = True, task: str = "", recipe: str = ""):
         self.comp = comp
         self.agent = agent
         self.env = env                 # names of locals, innermost first ("" for call results)
-        self.sc = sc
         self.snapshot = snapshot       # cells as `pc C` (evaluated against a snapshot)
         self.run_tasks = run_tasks     # reads of task-initialised variables run the task first
         self.task, self.recipe = task, recipe
@@ -153,7 +157,7 @@ class _Ctx:
 
     def sub(self) -> "_Ctx":
         """A context for a hoisted site: same locals, its own reads."""
-        c = _Ctx(self.comp, self.agent, self.env, self.sc, self.snapshot, self.run_tasks, self.task, self.recipe)
+        c = _Ctx(self.comp, self.agent, self.env, self.snapshot, self.run_tasks, self.task, self.recipe)
         c.slots = self.slots
         return c
 
@@ -166,14 +170,12 @@ class _Ctx:
 
 
 class _Compiler:
-    def __init__(self, spec: a.Spec, registry: Optional[Registry], functional: str):
+    def __init__(self, checked: CheckedSpec, registry: Optional[Registry], functional: str):
+        spec = checked.spec
         self.spec = spec
+        self.checked = checked   # the types the static checks found (the compiler re-checks nothing)
         self.registry = registry
         self.functional = functional
-        self.chk = _Checker(spec)
-        for ag in spec.agents:
-            self.chk.declarations(ag)
-        self.chk.errors.clear()
         self.out: list[str] = []
         self.model = CompiledModel(spec, "", "", functional=functional)
         self.n_sites = 0
@@ -182,6 +184,11 @@ class _Compiler:
         self.cst_ast: dict[str, tuple[a.Agent, a.Expr]] = {}
         self.task_run_csts: dict[str, str] = {}   # task const -> cst const
         self.predicates: dict[str, str] = {}      # pexp text -> agent (for cands)
+        self.predicate_exprs: dict[str, tuple[a.Agent, a.Expr]] = {}   # pexp text -> (agent, qualified predicate)
+        # cst -> the equalities its where clause establishes with literal values (hypotheses of the
+        # logic layer, 4.3); None once two sends of it disagree (then it has none)
+        self.where_hyps: dict[str, Optional[tuple[str, ...]]] = {}
+        self.hyp_keys: dict[str, tuple[str, tuple[str, ...]]] = {}   # pwhere key -> (predicate, hypotheses)
         self.rules: list[str] = []
         self.pending_fns: dict[str, tuple[Optional[str], str, str]] = {}
 
@@ -246,7 +253,7 @@ class _Compiler:
 
     # ------------------------------------------------------------ expressions
     def ty(self, e: a.Expr, cx: _Ctx) -> Optional[str]:
-        return self.chk.ty(e, cx.sc)
+        return self.checked.type_of(e)
 
     def prepare(self, e: a.Expr, cx: _Ctx) -> None:
         """Hoist the calls and task runs of ``e``, in evaluation order (arguments first)."""
@@ -287,7 +294,7 @@ class _Compiler:
         found = self.spec.resolve_function(cx.agent, e)
         if found:
             owner, _decl = found[0]
-            result_ty = self.chk.fn_sigs.get((owner, e.name), (None, None))[0]
+            result_ty = self.checked.fn_sigs.get((owner, e.name), (None, None))[0]
         elif e.name in a.BUILTINS:
             owner, result_ty = None, a.BUILTINS[e.name][0]
         else:
@@ -300,9 +307,10 @@ class _Compiler:
         args = [self.pexp(x, sub) for x in e.args]
         fc = self.fn_c(owner, e.name)
         self.model.fn_types[fc] = result_ty
-        self.model.fn_params[fc] = list(self.chk.fn_sigs.get((owner, e.name), (None, []))[1] or [])
+        self.model.fn_params[fc] = list(self.checked.fn_sigs.get((owner, e.name), (None, []))[1] or [])
         self.pending_fns[fc] = (owner, e.name, result_ty)
         s = self.site("call", cx.agent, cx.task, cx.recipe, e.pos, format_expr(e), function=e.qualified)
+        self.model.call_sites.setdefault(fc, []).append(e.pos)
         prem, outs = self.premises(sub)
         vals = [f"A{i + 1}" for i in range(len(args))]
         evals = "".join(f" -o !peval vnil E vnil {p} {v}" for p, v in zip(args, vals))
@@ -374,7 +382,7 @@ class _Compiler:
         tmp = a.Constraint(pred, (), pos=pred.pos)
         target = target or tmp.target(sender.name) or sender.name
         tag = self.spec.agent(target)
-        pcx = _Ctx(self, tag, [], self.chk.scope(tag), snapshot=True)
+        pcx = _Ctx(self, tag, [], snapshot=True)
         # the sender's unqualified names are its own variables
         text = self.pexp(self._qualify(pred, sender.name), pcx)
         key = (target, text)
@@ -386,23 +394,27 @@ class _Compiler:
             self.cst_ast[c] = (tag, self._qualify(pred, sender.name))
             self.model.csts[c] = (target, format_expr(pred))
             self.predicates[text] = target
+            self.predicate_exprs.setdefault(text, self.cst_ast[c])
         return c
 
     def _qualify(self, e: a.Expr, own: str) -> a.Expr:
         """Unqualified names of agent ``own`` written ``own::name`` (a predicate read by another agent)."""
         import dataclasses
         if isinstance(e, a.Name):
-            return a.Remote(own, e.name, pos=e.pos)
-        if isinstance(e, a.Call):
+            out: a.Expr = a.Remote(own, e.name, pos=e.pos)
+        elif isinstance(e, a.Call):
             return e
-        kw = {}
-        for f in dataclasses.fields(e):
-            if not f.compare:
-                continue
-            v = getattr(e, f.name)
-            if isinstance(v, a.Expr):
-                kw[f.name] = self._qualify(v, own)
-        return dataclasses.replace(e, **kw) if kw else e
+        else:
+            kw = {}
+            for f in dataclasses.fields(e):
+                if not f.compare:
+                    continue
+                v = getattr(e, f.name)
+                if isinstance(v, a.Expr):
+                    kw[f.name] = self._qualify(v, own)
+            out = dataclasses.replace(e, **kw) if kw else e
+        self.checked.same_type(out, e)   # the rewritten expression has the checked one's type
+        return out
 
     def task_run_cst(self, owner: a.Agent, task: str) -> str:
         tc = self.task_c(owner.name, task)
@@ -414,17 +426,16 @@ class _Compiler:
         return c
 
     # ------------------------------------------------------------ recipes
-    def block(self, ag: a.Agent, task: a.Task, r: a.Recipe, stmts, sc: _Scope) -> list[str]:
+    def block(self, ag: a.Agent, task: a.Task, r: a.Recipe, stmts) -> list[str]:
         env: list[str] = []
         code: list[str] = []
         for st in stmts:
-            code += self.stmt(ag, task, r, st, env, sc)
-            self.chk.stmt(st, sc)   # keep the checker's scope in step (types of locals)
+            code += self.stmt(ag, task, r, st, env)
         return code
 
-    def stmt(self, ag: a.Agent, task: a.Task, r: a.Recipe, st: a.Stmt, env: list[str], sc: _Scope,
+    def stmt(self, ag: a.Agent, task: a.Task, r: a.Recipe, st: a.Stmt, env: list[str],
              kind_name: Optional[str] = None) -> list[str]:
-        cx = _Ctx(self, ag, env, sc, task=task.name, recipe=r.name)
+        cx = _Ctx(self, ag, env, task=task.name, recipe=r.name)
         text = format_stmt(st)
         kind = {a.Set: "set", a.Let: "let", a.ExprStmt: "expr", a.Make: "make", a.Ensure: "ensure",
                 a.Abort: "abort", a.Wait: "wait", a.Assert: "assert"}[type(st)]
@@ -501,6 +512,7 @@ class _Compiler:
                     f"{s}_wake : ctl I (m_block Old) (ccons {s} C) E{wprem}\n"
                     f"  -o !val_eq Old {self._list(list(fresh.values()))} ff\n"
                     f"  -o {{ctl I m_run (ccons {s} C) E{wouts}}}.")
+        self.division_failures(st, s, cx, kind)
         for _ in range(cx.pushed):
             env.pop(0)
         if isinstance(st, a.Let):
@@ -508,6 +520,68 @@ class _Compiler:
         if isinstance(st, a.Ensure) and st.handle:
             env.insert(0, st.handle)
         return cx.hoisted + [s]
+
+    def note_where_hyps(self, cst: str, cells: list[str], values: list[a.Expr]) -> None:
+        """Record the equalities ``cell == literal`` a send of ``cst`` establishes by its where
+        clause; sends that disagree (or a value that is not a literal) leave the constraint with
+        no hypothesis, as if it had no where clause (fewer candidates, never wrong ones)."""
+        hyps = []
+        for cell, v in zip(cells, values):
+            lit = self.literal(v)
+            if lit is None:
+                self.where_hyps[cst] = None
+                return
+            hyps.append(f"(fatom (pbin o_eq (pc {cell}) (pl {lit})))")
+        got = tuple(hyps)
+        if cst in self.where_hyps and self.where_hyps[cst] != got:
+            self.where_hyps[cst] = None
+        else:
+            self.where_hyps[cst] = got
+
+    def literal(self, e: a.Expr) -> Optional[str]:
+        """The value of a literal expression (a where value), or None."""
+        if isinstance(e, (a.IntLit, a.DoubleLit, a.BoolLit, a.StringLit)) or (
+                isinstance(e, a.Unary) and e.op == "-" and isinstance(e.operand, (a.IntLit, a.DoubleLit))):
+            return self.const_value(e)
+        return None
+
+    def key_hypotheses(self) -> None:
+        """A constraint with where hypotheses is decided on its own key, ``pwhere P Hs`` (evaluated
+        as ``P``), whose candidates the logic layer proves under ``Hs`` (4.3: "a solution under
+        certain hypotheses")."""
+        for c, hyps in sorted(self.where_hyps.items()):
+            if not hyps:
+                continue
+            p = self.cst_pexp[c]
+            key = f"(pwhere {p} {self._list([f'(vform {h})' for h in hyps])})"
+            self.cst_pexp[c] = key
+            self.predicates[key] = self.predicates[p]
+            self.hyp_keys[key] = (p, hyps)
+
+    def division_failures(self, st: a.Stmt, s: str, cx: _Ctx, kind: str) -> None:
+        """A division by zero in the statement's expressions is a local failure of the recipe at
+        this site (the engine's division has no value there, so without these rules the recipe
+        would block, and the explorer would call it a deadlock)."""
+        if isinstance(st, (a.Set, a.Let)):
+            roots = [st.value]
+        elif isinstance(st, (a.Wait, a.Assert)):
+            roots = [st.cond]
+        elif isinstance(st, (a.Make, a.Ensure)):
+            roots = list(st.constraint.writes(cx.agent.name).values())
+        else:
+            return
+        divisors = [n.right for e in roots for n in a.walk(e) if isinstance(n, a.Binary) and n.op == "/"]
+        if not divisors:
+            return
+        E = cx.envpat()
+        prem, outs = self.premises(cx)
+        for k, d in enumerate(divisors):
+            where = self.site("div", cx.agent, cx.task, cx.recipe, d.pos,
+                              f"division by zero: {format_expr(d)} is 0 in {self.model.sites[s].text}")
+            self.rules.append(
+                f"{s}_div{chr(97 + k)} : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
+                f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0) -o act I R0 T0 Rc0 N\n"
+                f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
 
     def send(self, ag: a.Agent, st, cx: _Ctx, s: str, head: str) -> None:
         """make / ensure (4.4, 8.3): a fresh request with the where values, owned by the activation."""
@@ -520,6 +594,7 @@ class _Compiler:
         known = self.where_cells.setdefault(cst, cells)
         if known != cells:
             raise UnsupportedError("the same constraint sent with different where clauses", st.pos)
+        self.note_where_hyps(cst, cells, list(writes.values()))
         prem, outs = self.premises(cx)
         names = [f"W{i + 1}" for i in range(len(wvals))]
         E = cx.envpat()
@@ -539,28 +614,25 @@ class _Compiler:
     def recipe(self, ag: a.Agent, t: a.Task, r: a.Recipe) -> None:
         o = self.out
         rc = self.recipe_c(ag.name, t.name, r.name)
-        sc = self.chk.scope(ag).fresh()
-        body = self.block(ag, t, r, r.body, sc)
+        body = self.block(ag, t, r, r.body)
         # the recipe's and the task's post-conditions are checked when the body is done:
         # a violated one fails the recipe with its reason (a local failure)
         for e, whose in [(e, "recipe") for e in r.post] + [(e, "task") for e in t.post]:
             for conj in a.conjuncts(e):
-                sites = self.stmt(ag, t, r, a.Assert(conj, None, pos=conj.pos), [], self.chk.scope(ag).fresh(),
-                                  kind_name="post")
+                sites = self.stmt(ag, t, r, a.Assert(conj, None, pos=conj.pos), [], kind_name="post")
                 site = self.model.sites[sites[-1]]
                 site.text = f"post-condition of {whose} {t.name if whose == 'task' else r.name}: {format_expr(conj)}"
                 body += sites
-        end = self.block(ag, t, r, r.end, self.chk.scope(ag).fresh())
+        end = self.block(ag, t, r, r.end)
         end_code = end + ["s_done"]
         o.append(f"body_{rc} : bodycode {rc} {self._code(body + ['s_end'] + end_code)}.")
         o.append(f"end_{rc} : endcode {rc} {self._code(end_code)}.")
         # pre-condition checks, in a checker activation that counts the false ones
         env: list[str] = []
         pre_code = []
-        sc = self.chk.scope(ag).fresh(last_error=True)
         hsp = "hs R (h_rchk T P Cs Sc Rc) EC F Pl W"
         for e in r.pre:
-            cx = _Ctx(self, ag, env, sc, run_tasks=False, task=t.name, recipe=r.name)
+            cx = _Ctx(self, ag, env, run_tasks=False, task=t.name, recipe=r.name)
             self.prepare(e, cx)
             cond = self.pexp(e, cx)
             s = self.site("pre", ag, t.name, r.name, e.pos, format_expr(e))
@@ -601,8 +673,7 @@ class _Compiler:
                 if isinstance(td, a.StructType):
                     key = f"{ag.name}::{td.name}"
                     m.structs[key] = [f.name for f in td.fields]
-                    sc = self.chk.scope(ag)
-                    self.field_types[key] = {f.name: self.chk.resolve_type(f.type, sc) for f in td.fields}
+                    self.field_types[key] = {f.name: self.checked.structs[key][f.name] for f in td.fields}
         o = self.out
         o.append("\n% ================================================================ compiled spec")
         ids = 0
@@ -611,7 +682,7 @@ class _Compiler:
             o.append(f"a_{ag.name} : agent.")
             for v in ag.vars:
                 c = self.cell(ag.name, v.name)
-                m.cell_types[c] = self.chk.var_types.get((ag.name, v.name))
+                m.cell_types[c] = self.checked.var_types.get((ag.name, v.name))
                 o.append(f"{c} : dest.")
             for t in ag.tasks:
                 ids += 1
@@ -628,11 +699,13 @@ class _Compiler:
         for ag in spec.agents:
             for t in ag.tasks:
                 tc = self.task_c(ag.name, t.name)
-                pcx = _Ctx(self, ag, [], self.chk.scope(ag), snapshot=True)
+                pcx = _Ctx(self, ag, [], snapshot=True)
                 pcx.task, pcx.recipe = t.name, ""
-                pres = [self.pexp(self._qualify(e, ag.name), pcx) for e in t.pre]
-                for p in pres:
+                qualified = [self._qualify(e, ag.name) for e in t.pre]
+                pres = [self.pexp(q, pcx) for q in qualified]
+                for p, q in zip(pres, qualified):
                     self.predicates[p] = ag.name
+                    self.predicate_exprs.setdefault(p, (ag, q))
                 o.append(f"tpre_{tc} : tpre {tc} {self._list([f'(vpexp {p})' for p in pres])}.")
                 for i, e in enumerate(t.post):
                     for conj in a.conjuncts(e):
@@ -654,6 +727,7 @@ class _Compiler:
             raise UnsupportedError("the request's where clause differs from the one its recipes use",
                                    request.pos)
         self.where_cells[req_cst] = cells
+        self.note_where_hyps(req_cst, cells, list(writes.values()))
         wvals = []
         for v in writes.values():
             wvals.append(self.const_value(v))
@@ -664,6 +738,7 @@ class _Compiler:
             decls.append(f"id_{c} : cst_id {c} {i}.")
         decls += [f"{fc} : fn." for fc in sorted(m.functions)]
         o[hdr:hdr] = decls
+        self.key_hypotheses()
         for c in sorted(self.cst_pexp):
             self.constraint_rules(c)
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
@@ -683,11 +758,13 @@ class _Compiler:
                     f" * hs r0 h_select vnil vnil vnil (vsome {self._list([f'(vpair (vcell {c}) {v})' for c, v in zip(cells, wvals)])})")
         m.init = "Exists r0. " + " * ".join(init)
         o.append(f"\n#exec * {m.init}.")
-        body = "\n".join(o)
-        text = framework_text() + body + "\n"
+        body = "\n".join(o) + "\n"
+        sig = extend_framework(body, "<compiled model>")
         # the logic layer: candidates of every predicate, by proof search (8.2)
-        text += self.candidates(text)
-        m.text = text
+        cands = self.candidates(sig)
+        m.spec_text = body + cands
+        m.text = framework_text() + m.spec_text
+        m._program = Program(extend_signature(sig, cands, "<compiled model>"))
         return m
 
     def const_value(self, e: a.Expr) -> str:
@@ -705,7 +782,7 @@ class _Compiler:
         raise UnsupportedError(f"a request's where value must be a literal, not '{format_expr(e)}'", e.pos)
 
     def initial(self, ag: a.Agent, v: a.Var) -> str:
-        ty = self.chk.var_types.get((ag.name, v.name))
+        ty = self.checked.var_types.get((ag.name, v.name))
         if v.init is None or ag.reading_task(v) is not None:
             return self.default(ty)
         try:
@@ -786,7 +863,7 @@ class _Compiler:
             rules.append(f"outcome_{fc}_{oname} : pending {fc} _ D{writes_p} -o {{{res}{writes_o}}}.")
         return rules
 
-    def candidates(self, text: str) -> str:
+    def candidates(self, sig) -> str:
         """The logic layer at compile time: which tasks' post-conditions entail each predicate (4.3, 8.2).
 
         The entailment ``prove`` is the framework's proof search (hyp/prove
@@ -795,56 +872,56 @@ class _Compiler:
         recorded as ``cands`` clauses in declaration order.
         """
         from ..clf.backward import Backward
-        from ..clf.program import Program
         goals = []
         for p, agent in sorted(self.predicates.items()):
             for t in self.spec.agent(agent).tasks:
                 goals.append((p, self.task_c(agent, t.name)))
         budget = nat(PROOF_BUDGET)
-        queries = "".join(f"#query * * * 1 prove {budget} {tc} {self._form(p)}.\n" for p, tc in goals)
-        prog = Program.from_text(text + "\n" + queries, "<compiled model>")
+        queries = "".join(f"#query * * * 1 prove {budget} {tc} {self.goal_form(p)}.\n" for p, tc in goals)
+        prog = Program(extend_signature(sig, queries, "<compiled model>"))
         found: dict[str, list[str]] = {p: [] for p in self.predicates}
         for (p, tc), q in zip(goals, [d for d in prog.sig.directives if hasattr(d, "goal")]):
             for _ in Backward(prog).solve(q.goal):
                 found[p].append(f"(vtsk {tc})")
                 break
+        for c, key in self.cst_pexp.items():   # for people and tests: each constraint's candidate tasks
+            self.model.candidates[c] = [self.model.tasks[t[len("(vtsk "):-1]] for t in found.get(key, [])]
         out = ["\n% the logic layer's candidates (prove, run by the compiler)"]
         for i, p in enumerate(sorted(found)):
             out.append(f"cands_{i} : cands {p} {self._list(found[p])}.")
         return "\n".join(out) + "\n"
 
-    @staticmethod
-    def _form(p: str) -> str:
-        """A predicate as a formula: conjunctions split."""
-        m = re.fullmatch(r"\(pbin o_and (.*)\)", p)
-        if m:
-            left, right = _split2(m.group(1))
-            return f"(fand {_Compiler._form(left)} {_Compiler._form(right)})"
-        return f"(fatom {p})"
+    def goal_form(self, p: str) -> str:
+        """What the logic layer proves for predicate key ``p``: its formula, under the where
+        hypotheses of a ``pwhere`` key."""
+        if p in self.hyp_keys:
+            base, hyps = self.hyp_keys[p]
+            form = self._form(*self.predicate_exprs[base])
+            for h in reversed(hyps):
+                form = f"(fwith {h} {form})"
+            return form
+        return self._form(*self.predicate_exprs[p])
+
+    def _form(self, agent: a.Agent, e: a.Expr) -> str:
+        """A predicate as a formula of the logic layer: conjunctions split, each conjunct an atom."""
+        if isinstance(e, a.Binary) and e.op == "&&":
+            return f"(fand {self._form(agent, e.left)} {self._form(agent, e.right)})"
+        return f"(fatom {self.pexp(e, _Ctx(self, agent, [], snapshot=True))})"
 
 
-def _split2(s: str) -> tuple[str, str]:
-    """Split 'X Y' where X and Y are parenthesised terms."""
-    depth = 0
-    for i, ch in enumerate(s):
-        if ch == "(":
-            depth += 1
-        elif ch == ")":
-            depth -= 1
-            if depth == 0:
-                return s[:i + 1], s[i + 1:].strip()
-    raise ValueError(s)
-
-
-def compile_spec(spec: a.Spec, request, registry: Optional[Registry] = None,
+def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[Registry] = None,
                  functional: str = "abstract") -> CompiledModel:
-    """Compile ``spec`` with ``request`` (text or Constraint) to CLF.
+    """Compile ``spec`` (as :func:`~roar_formal.roar.spec.load_spec` loaded it, or checked) with
+    ``request`` (text or Constraint) to CLF.
 
     ``functional`` is "abstract" (each primitive's declared outcomes are
     rules: the explorer branches on them) or "python" (pending calls are
     answered by the registry's callables, outside the signature).
     """
-    req = check_request(spec, request)
+    checked = checked_spec(spec)
+    if registry is not None and functional == "python":
+        registry.resolve(checked.spec)   # every call bound, with the right number of arguments (located)
+    req, typed = typed_request(checked, request)
     if req.target() is None:
         raise RoarError("the request must name exactly one agent", req.pos)
-    return _Compiler(spec, registry, functional).compile(req)
+    return _Compiler(checked.with_types(typed), registry, functional).compile(req)

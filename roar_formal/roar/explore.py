@@ -29,6 +29,7 @@ from ..clf.rules import LIN
 from ..clf.terms import Const, Root, const
 from ..explore.system import ClfSystem, Options, Successor
 from .compile import CompiledModel
+from . import vocabulary as V
 
 #: rules whose step brings a request to a final state (the default progress events)
 PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_again", "written_holds_again_top",
@@ -42,22 +43,22 @@ MONITOR_FAMILIES = frozenset({"rq", "pending", "return", "callfail", "act", "chk
 #: what the exclusive-writes invariant reads
 EXCLUSIVE_WRITES_FAMILIES = frozenset({"rq", "hs"})
 
-_REQ_FAMILIES = {"hs", "rs", "rq", "wrq", "tfn", "abortreq", "cres", "ppz", "rdone", "ecf", "cfail", "tfe"}
-_INST_FAMILIES = {"ctl", "rstat", "alive", "ending", "kill", "fin", "act", "chk", "owns"}
+_REQ_FAMILIES = V.REQUEST_FAMILIES
+_INST_FAMILIES = V.INSTANCE_FAMILIES
 _SITE_RULE = re.compile(r"st(\d+)_([a-z_]+?)(?:_false|_wake)?$")
 
 
-def _h(t) -> Optional[str]:
-    return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
+_h = V.head_name
+_RQ, _ACT, _CHK, _MON_IN = Const(V.RQ), Const(V.ACT), Const(V.CHK), Const(V.MON_IN)
 
 
 def roar_final(ctx: Context) -> bool:
     """Every request in a final state and no recipe activation left."""
     for _m, f, _n in ctx.facts():
         h = _h(f)
-        if h == "ctl":
+        if h == V.CTL:
             return False
-        if h == "rs" and _h(f.args[1]) not in FINAL_STATES:
+        if h == V.RS and _h(V.rs(f).state) not in FINAL_STATES:
             return False
     return True
 
@@ -130,38 +131,44 @@ class RoarSystem(ClfSystem):
             if h is None or not f.args:
                 continue
             if h in _REQ_FAMILIES:
-                who = self._req_agent(state, f.args[0])
+                who = self._req_agent(state, V.subject(f))
                 if who:
                     return who
             elif h in _INST_FAMILIES:
-                who = self._inst_agent(state, f.args[0])
+                who = self._inst_agent(state, V.subject(f))
                 if who:
                     return who
-            elif h == "contains" and _h(f.args[0]) in m.cells:
-                return m.cells[_h(f.args[0])][0]
-            elif h == "mask" and _h(f.args[0]) in m.agents:
-                return m.agents[_h(f.args[0])]
-            elif h == "pending":
-                owner, _name = m.functions.get(_h(f.args[0]), (None, None))
+            elif h == V.CONTAINS:
+                cell = _h(V.contains(f).cell)
+                if cell in m.cells:
+                    return m.cells[cell][0]
+            elif h == V.MASK:
+                agent = _h(V.mask(f).agent)
+                if agent in m.agents:
+                    return m.agents[agent]
+            elif h == V.PENDING:
+                owner, _name = m.functions.get(_h(V.pending(f).fn), (None, None))
                 if owner:
                     return owner
         return rule
 
     def _req_agent(self, state: Context, r) -> Optional[str]:
-        bag = state.index.get(Const("rq"))
+        bag = state.index.get(_RQ)
         if bag:
             for f in bag.items:
-                if f.args[0] is r:
-                    return self.model.agents.get(_h(f.args[1]))
+                q = V.rq(f)
+                if q.request is r:
+                    return self.model.agents.get(_h(q.agent))
         return None
 
     def _inst_agent(self, state: Context, i) -> Optional[str]:
-        for fam, k in (("act", 3), ("chk", 2)):
-            bag = state.index.get(Const(fam))
+        for fam, decode in ((_ACT, V.act), (_CHK, V.chk)):
+            bag = state.index.get(fam)
             if bag:
                 for f in bag.items:
-                    if f.args[0] is i:
-                        rc = self.model.recipes.get(_h(f.args[k]))
+                    a = decode(f)
+                    if a.inst is i:
+                        rc = self.model.recipes.get(_h(a.recipe))
                         if rc:
                             return rc[0]
         return None
@@ -172,63 +179,66 @@ class RoarSystem(ClfSystem):
         produced = [f for _m, f in step.produced if type(f) is Root]
         site = _SITE_RULE.match(step.rule)
         site_c = f"pp{site.group(1)}_{site.group(2)}" if site else None
-        old_reqs = {f.args[0] for f in consumed if _h(f) == "rq"}
+        old_reqs = {V.rq(f).request for f in consumed if _h(f) == V.RQ}
         # new requests inherit the subtrees of the request their emitter handles
         for f in produced:
-            if _h(f) != "rq" or f.args[0] in old_reqs:
+            if _h(f) != V.RQ:
                 continue
-            r, emitter = f.args[0], f.args[3]
-            tags = set(self._tags_of_inst(state, emitter))
+            q = V.rq(f)
+            if q.request in old_reqs:
+                continue
+            tags = set(self._tags_of_inst(state, q.emitter))
             if site_c in self._a_sites or site_c in self._b_sites:
                 tags.add(site_c)
             for b in self._resets.get(site_c, ()):   # a new instance of A: B has not started
-                _remove(nxt, "mon_b", lambda g, b=b: _h(g.args[0]) == b)
+                _remove(nxt, V.MON_B, lambda g, b=b: _h(V.mon_b(g).pair) == b)
             for t in tags:
-                nxt.add_fact(const("mon_in", r, const(t)), LIN)
+                nxt.add_fact(const(V.MON_IN, q.request, const(t)), LIN)
         # commands start in the subtrees of the request their activation handles
         for f in produced:
-            if _h(f) != "pending":
+            if _h(f) != V.PENDING:
                 continue
-            inst = next((g.args[0] for g in consumed if _h(g) == "ctl"), None)
+            inst = next((V.ctl(g).inst for g in consumed if _h(g) == V.CTL), None)
             tags = self._tags_of_inst(state, inst) if inst is not None else set()
             for t in tags:
-                nxt.add_fact(const("mon_cmd", f.args[2], const(t)), LIN)
-                if t in self._b_sites and not _has(nxt, "mon_b", lambda g, t=t: _h(g.args[0]) == t):
-                    nxt.add_fact(const("mon_b", const(t)), LIN)
+                nxt.add_fact(const(V.MON_CMD, V.pending(f).dest, const(t)), LIN)
+                if t in self._b_sites and not _has(nxt, V.MON_B, lambda g, t=t: _h(V.mon_b(g).pair) == t):
+                    nxt.add_fact(const(V.MON_B, const(t)), LIN)
         # commands end; requests disappear
         for f in consumed:
             h = _h(f)
-            if h in ("return", "callfail"):
-                d = f.args[-1]
-                _remove(nxt, "mon_cmd", lambda g, d=d: g.args[0] is d)
-        gone = old_reqs - {f.args[0] for f in produced if _h(f) == "rq"}
+            if h == V.RETURN or h == V.CALLFAIL:
+                d = V.return_(f).dest if h == V.RETURN else V.callfail(f).dest
+                _remove(nxt, V.MON_CMD, lambda g, d=d: V.mon_cmd(g).dest is d)
+        gone = old_reqs - {V.rq(f).request for f in produced if _h(f) == V.RQ}
         for r in gone:
-            _remove(nxt, "mon_in", lambda g, r=r: g.args[0] is r)
+            _remove(nxt, V.MON_IN, lambda g, r=r: V.mon_in(g).request is r)
 
     def _tags_of_inst(self, state: Context, inst) -> set:
         """The subtrees (pair sites) of the request activation ``inst`` handles."""
         req = None
-        for fam in ("act", "chk"):
-            bag = state.index.get(Const(fam))
+        for fam, decode in ((_ACT, V.act), (_CHK, V.chk)):
+            bag = state.index.get(fam)
             if bag:
                 for f in bag.items:
-                    if f.args[0] is inst:
-                        req = f.args[1]
+                    a = decode(f)
+                    if a.inst is inst:
+                        req = a.request
                         break
             if req is not None:
                 break
         if req is None:
             return set()
-        bag = state.index.get(Const("mon_in"))
-        return {_h(f.args[1]) for f in bag.items if f.args[0] is req} if bag else set()
+        bag = state.index.get(_MON_IN)
+        return {_h(m.pair) for m in map(V.mon_in, bag.items) if m.request is req} if bag else set()
 
     def violates_sequence(self, state: Context) -> Optional[Pair]:
         """The pair whose order the state breaks: a command of A's subtree running after one of
         B's subtree started."""
-        started = {_h(f.args[0]) for f in _facts(state, "mon_b")}
+        started = {_h(V.mon_b(f).pair) for f in _facts(state, V.MON_B)}
         if not started:
             return None
-        running = {_h(f.args[1]) for f in _facts(state, "mon_cmd")}
+        running = {_h(V.mon_cmd(f).pair) for f in _facts(state, V.MON_CMD)}
         for p in self.pairs:
             if p.b in started and p.a in running:
                 return p
@@ -238,13 +248,13 @@ class RoarSystem(ClfSystem):
     def shared_write(self, state: Context) -> Optional[tuple[str, list[str]]]:
         """A variable two live accepted constraints write through where clauses, if any."""
         cells: dict = {}
-        rq = {f.args[0]: _h(f.args[2]) for f in _facts(state, "rq")}
-        for f in _facts(state, "hs"):
-            if _h(f.args[5]) == "vsome":
+        rq = {q.request: _h(q.cst) for q in map(V.rq, _facts(state, V.RQ))}
+        for h in map(V.hs, _facts(state, V.HS)):
+            if _h(h.where) == "vsome":
                 # its where values are not written yet: still deciding (h_select, h_dec), or
                 # waiting after a conflict (h_cwait) until the holder releases the task
                 continue
-            c = rq.get(f.args[0])
+            c = rq.get(h.request)
             for cell in self.where_cells.get(c, ()):
                 cells.setdefault(cell, []).append(c)
         for cell, cs in cells.items():
@@ -285,8 +295,8 @@ def path_narration(model: CompiledModel, start: Context, steps: list):
     from .run import Narrator
     nar = Narrator(model)
     for _m, f, _n in start.facts():
-        if _h(f) == "rq":
-            nar.label(f.args[0])
+        if _h(f) == V.RQ:
+            nar.label(V.rq(f).request)
             nar.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
     out = []
     for i, step in enumerate(steps, 1):

@@ -352,3 +352,29 @@ def _arity(fn: Callable) -> Optional[tuple[int, Optional[int]]]:
             if p.default is p.empty:
                 low += 1
     return (low, high)
+
+
+def functional_module(spec_path, given=None):
+    """The functional-layer module of a spec (``--functional FILE`` or the one next to it), or None."""
+    return find_module(spec_path, given)
+
+
+def load_registry(path) -> Optional["Registry"]:
+    """Import a functional-layer module and build its registry (``registry()``, or ``REGISTRY``)."""
+    if path is None:
+        return None
+    mod = import_module(path)
+    make = getattr(mod, "registry", None)
+    if callable(make):
+        try:
+            reg = make()
+        except RoarError:
+            raise
+        except Exception as exc:
+            raise RoarError(f"{path}: registry() failed: {type(exc).__name__}: {exc}") from None
+    else:
+        reg = getattr(mod, "REGISTRY", None)
+    if not isinstance(reg, Registry):
+        raise RoarError(f"{path}: a functional-layer module defines registry() returning a Registry "
+                        f"(roar_formal.roar.functional.Registry)")
+    return reg

@@ -8,9 +8,9 @@ a message in terms of the source text; no lark exception escapes.
 
 Entry points:
 
-* :func:`load_spec` reads a ``.roar`` file, a ``.ability`` file (hyper layout,
-  with its task folder and imports) or a folder of ``.ability`` files, and
-  (by default) runs the static checks of :mod:`.checks`.
+* :func:`read_spec` reads a ``.roar`` file, a ``.ability`` file (hyper layout,
+  with its task folder and imports) or a folder of ``.ability`` files (the
+  static checks are :mod:`.checks`'; :func:`.spec.load_spec` runs both).
 * :func:`parse_roar` parses single-file text; :func:`parse_expr` and
   :func:`parse_constraint` parse an expression or a request
   (``demo_loco::pos == demo_loco::goal where demo_loco::goal == 5``).
@@ -37,11 +37,20 @@ from . import ast as a
 from .pretty import format_expr
 
 __all__ = [
-    "load_spec", "parse_roar", "parse_expr", "parse_constraint", "parse_task", "parse_recipes",
+    "read_spec", "parse_roar", "parse_expr", "parse_constraint", "parse_task", "parse_recipes",
     "hyper_compat_warnings", "HYPER_PREC",
 ]
 
 _FILE: contextvars.ContextVar[str] = contextvars.ContextVar("roar_spec_file", default="<input>")
+
+
+#: the longest number literal read (Python refuses to convert ints of more than 4,300 digits)
+MAX_DIGITS = 1000
+
+
+def _short_enough(tok: Token) -> None:
+    if len(tok) > MAX_DIGITS:
+        raise SyntaxError_(f"a number of {len(tok):,} characters: at most {MAX_DIGITS:,} are read", _tpos(tok))
 
 
 def _tpos(tok: Token) -> Pos:
@@ -322,9 +331,11 @@ class _Build(Transformer):
         return a.Field(base, str(name), pos=base.pos)
 
     def int_lit(self, c):
+        _short_enough(c[0])
         return a.IntLit(int(c[0]), pos=_tpos(c[0]))
 
     def double_lit(self, c):
+        _short_enough(c[0])
         return a.DoubleLit(float(c[0]), pos=_tpos(c[0]))
 
     def string_lit(self, c):
@@ -554,15 +565,15 @@ class _Loader:
         return tuple(tasks)
 
 
-def load_spec(path: Union[str, PathLike], *, hyper_compat: bool = False, check: bool = True) -> a.Spec:
-    """Load a spec: a ``.roar`` file, a ``.ability`` file, or a folder of ``.ability`` files.
+def read_spec(path: Union[str, PathLike], *, hyper_compat: bool = False) -> a.Spec:
+    """Parse a spec: a ``.roar`` file, a ``.ability`` file, or a folder of ``.ability`` files
+    (the static checks are :mod:`.checks`'; :func:`roar_formal.roar.spec.load_spec` runs both).
 
     A ``.ability`` file brings its task folder (``NAME/``, recipes in
     ``NAME/TASK/``) and the files it imports; a folder loads every ``.ability``
-    file in it (or, when it has none, every ``.roar`` file). With ``check`` the
-    static checks run and a :class:`~roar_formal.roar.checks.SpecCheckError`
-    lists every problem. With ``hyper_compat`` the spec's ``warnings`` include
-    every expression that hyper's grammar reads differently.
+    file in it (or, when it has none, every ``.roar`` file). With ``hyper_compat``
+    the spec's ``warnings`` include every expression that hyper's grammar reads
+    differently.
     """
     p = Path(path)
     loader = _Loader()
@@ -581,11 +592,7 @@ def load_spec(path: Union[str, PathLike], *, hyper_compat: bool = False, check: 
     warnings = list(loader.warnings)
     if hyper_compat:
         warnings += hyper_compat_warnings(spec)
-    spec = dataclasses.replace(spec, warnings=tuple(sorted(warnings, key=_wkey)))
-    if check:
-        from .checks import check_spec
-        check_spec(spec)
-    return spec
+    return dataclasses.replace(spec, warnings=tuple(sorted(warnings, key=_wkey)))
 
 
 def _wkey(w: a.SpecWarning):

@@ -27,7 +27,8 @@ PREC = {"||": _OR, "&&": _AND, "+": _SUM, "-": _SUM, "*": _PROD, "/": _PROD,
 _ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\t": "\\t", "\r": "\\r"}
 
 
-def _string(s: str) -> str:
+def string_literal(s: str) -> str:
+    """A string as the spec language writes it: quoted, with its escapes."""
     return '"' + "".join(_ESCAPES.get(ch, ch) for ch in s) + '"'
 
 
@@ -75,7 +76,7 @@ def _fmt(e: a.Expr) -> str:
     if isinstance(e, a.DoubleLit):
         return _double(e.value)
     if isinstance(e, a.StringLit):
-        return _string(e.value)
+        return string_literal(e.value)
     if isinstance(e, a.Name):
         return e.name
     if isinstance(e, a.Remote):
@@ -250,7 +251,7 @@ def format_spec(spec: a.Spec) -> str:
         for imp in ag.imports:
             if imp.path not in paths:
                 paths.append(imp.path)
-    head = [f"import {_string(p)}" for p in paths]
+    head = [f"import {string_literal(p)}" for p in paths]
     body = ["\n".join(_agent_lines(ag, True)) for ag in spec.agents]
     return "\n\n".join((["\n".join(head)] if head else []) + body) + "\n"
 
@@ -262,7 +263,7 @@ def hyper_files(ag: a.Agent) -> dict[str, str]:
     recipes, in order, to ``NAME/TASK/recipes.recipe``. (The loader reads task
     files in file-name order, so tasks come back sorted by name.)
     """
-    head = "".join(f"import {_string(i.path)}\n" for i in ag.imports)
+    head = "".join(f"import {string_literal(i.path)}\n" for i in ag.imports)
     files = {f"{ag.name}.ability": head + format_agent(ag, with_tasks=False) + "\n"}
     for t in ag.tasks:
         files[f"{ag.name}/{t.name}.task"] = format_task(t, with_recipes=False) + "\n"

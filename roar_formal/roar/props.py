@@ -422,65 +422,68 @@ class View:
 def step_events(model, step) -> frozenset:
     """The events of an engine step the property language names: a primitive starting (a ``pending``
     fact produced) or ending (one consumed), a constraint sent (a new ``rq`` fact)."""
-    from ..clf.terms import Const, Root
-
-    def h(t):
-        return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
+    from . import vocabulary as V
+    h = V.head_name
     out = set()
     for part in (getattr(step, "parts", None) or (step,)):
         consumed = [f for _m, f in part.consumed]
-        old_reqs = {f.args[0] for f in consumed if h(f) == "rq"}
+        old_reqs = {V.rq(f).request for f in consumed if h(f) == V.RQ}
         for _m, f in part.produced:
             k = h(f)
-            if k == "pending" and h(f.args[0]) in model.functions:
-                owner, name = model.functions[h(f.args[0])]
-                out.add(("starts", owner, name))
-            elif k == "rq" and f.args[0] not in old_reqs:
-                agent = model.agents.get(h(f.args[1]))
-                if agent is not None:
-                    out.add(("sent", agent))
+            if k == V.PENDING:
+                fc = h(V.pending(f).fn)
+                if fc in model.functions:
+                    owner, name = model.functions[fc]
+                    out.add(("starts", owner, name))
+            elif k == V.RQ:
+                q = V.rq(f)
+                if q.request not in old_reqs:
+                    agent = model.agents.get(h(q.agent))
+                    if agent is not None:
+                        out.add(("sent", agent))
         for f in consumed:
-            if h(f) == "pending" and h(f.args[0]) in model.functions:
-                owner, name = model.functions[h(f.args[0])]
-                out.add(("ends", owner, name))
+            if h(f) == V.PENDING:
+                fc = h(V.pending(f).fn)
+                if fc in model.functions:
+                    owner, name = model.functions[fc]
+                    out.add(("ends", owner, name))
     return frozenset(out)
 
 
 def view_of(model, ctx) -> View:
-    from ..clf.terms import Const, Root
+    from ..clf.terms import Const
+    from . import vocabulary as V
     from .run import STATE_NAMES, value_of
 
-    def facts(fam):
+    def facts(fam, decode):
         bag = ctx.index.get(Const(fam))
-        return list(bag.items) if bag else []
+        return list(map(decode, bag.items)) if bag else []
 
-    def h(t):
-        return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
-
+    h = V.head_name
     values = {}
-    for f in facts("contains"):
-        cell = h(f.args[0])
+    for c in facts(V.CONTAINS, V.contains):
+        cell = h(c.cell)
         if cell in model.cells:
-            values[model.cells[cell]] = value_of(f.args[1])
-    states = {f.args[0]: STATE_NAMES.get(h(f.args[1]), h(f.args[1])) for f in facts("rs")}
+            values[model.cells[cell]] = value_of(c.value)
+    states = {x.request: STATE_NAMES.get(h(x.state), h(x.state)) for x in facts(V.RS, V.rs)}
     r0 = r0_id = None
     agent_states: dict = {}
-    for f in facts("rq"):
-        st = states.get(f.args[0])
-        if h(f.args[3]) == "itop":
-            r0, r0_id = st, f.args[0]
-        agent = model.agents.get(h(f.args[1]))
+    for q in facts(V.RQ, V.rq):
+        st = states.get(q.request)
+        if h(q.emitter) == "itop":
+            r0, r0_id = st, q.request
+        agent = model.agents.get(h(q.agent))
         if agent is not None and st is not None:
             agent_states.setdefault(agent, set()).add(st)
     ec = None
     if r0 == "failure":
-        ec = next((f.args[1] for f in facts("ecf") if f.args[0] is r0_id or f.args[0] == r0_id), None)
-    paused = {f.args[0] for f in facts("rstat") if h(f.args[1]) != "go"}
+        ec = next((e.ec for e in facts(V.ECF, V.ecf) if e.request is r0_id or e.request == r0_id), None)
+    paused = {z.inst for z in facts(V.RSTAT, V.rstat) if h(z.pause) != "go"}
     tasks: dict = {}
-    for f in facts("act"):
-        t = model.tasks.get(h(f.args[2]))
+    for a in facts(V.ACT, V.act):
+        t = model.tasks.get(h(a.task))
         if t is not None:
-            tasks.setdefault(t, set()).add("paused" if f.args[0] in paused else "go")
+            tasks.setdefault(t, set()).add("paused" if a.inst in paused else "go")
     return View(values, r0, ec, agent_states, tasks)
 
 
@@ -728,7 +731,7 @@ def _concat(a, b):
 
 def check_always(g, prop: str, holds: np.ndarray, why: Callable[[int], str]):
     """``always P``: the shortest path to a state where P is false (states in BFS order)."""
-    from ..explore.properties import Counterexample, Verdict, _incomplete
+    from ..explore.properties import Counterexample, Verdict, incomplete_note
     bad = np.flatnonzero(~holds[:g.n_states])
     if len(bad):
         s = int(bad[0])
@@ -736,7 +739,7 @@ def check_always(g, prop: str, holds: np.ndarray, why: Callable[[int], str]):
         reason = why(s)
         return Verdict(prop, "violated", f"{reason} (reached in {len(cx.prefix)} steps)", cx, {"reason": reason})
     if not g.complete:
-        return _incomplete(prop, g)
+        return incomplete_note(prop, g)
     return Verdict(prop, "holds", f"no violation in {g.n_states:,} states")
 
 
@@ -750,7 +753,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     minimises the path's length (to the seed by the BFS parent pointers, then inside the region).
     Only expanded states are used, so a violation found in a partial graph is real. ``cut`` marks
     states without successors that are not the end of a run (a robot-backed search's horizon)."""
-    from ..explore.properties import Counterexample, Verdict, _incomplete, _scc, _tour, fair_components
+    from ..explore.properties import Counterexample, Verdict, incomplete_note, strongly_connected, cycle_tour, fair_components
     n = g.n_states
     a = g.arrays()
     src, dst, grp = a["src"], a["dst"], a["group"]
@@ -760,7 +763,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     seeds = np.flatnonzero(seeds[:n] & ~target)
     if len(seeds) == 0:
         if not g.complete:
-            return _incomplete(prop, g)
+            return incomplete_note(prop, g)
         return Verdict(prop, "holds", holds_text)
     # multi-source shortest paths through non-target states (unit steps, seeds start at their depth)
     order = np.argsort(src, kind="stable")
@@ -794,7 +797,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     inner = region[src] & region[dst] & expanded[src] & expanded[dst]
     isrc, idst = src[inner], dst[inner]
     if len(isrc):
-        comp = _scc(n, isrc, idst)
+        comp = strongly_connected(n, isrc, idst)
         internal = comp[isrc] == comp[idst]
         cand_edges = np.flatnonzero(inner)[internal]
         if len(cand_edges):
@@ -808,7 +811,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
                             (cand_edges[ci == c], set(np.flatnonzero(always[c]).tolist())))
     if best is None:
         if not g.complete:
-            return _incomplete(prop, g)
+            return incomplete_note(prop, g)
         return Verdict(prop, "holds", holds_text)
     _, kind, s, extra = best
     tail = []
@@ -824,7 +827,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
         return Verdict(prop, "violated", f"{reason} (reached in {len(prefix)} steps)", cx,
                        {"reason": reason, "seed": u})
     edges_c, req = extra
-    cycle = _tour(g, s, edges_c, req, src, dst, grp)
+    cycle = cycle_tour(g, s, edges_c, req, src, dst, grp)
     cx = Counterexample("lasso", prefix, cycle, final_state=s)
     reason = why_cycle(s, len(cycle))
     names = sorted({g.groups.names[int(grp[e])] for e in cycle})
@@ -874,7 +877,7 @@ class SpecChecks:
         """Does the job check a predicate or a temporal property in the spec's terms? Partial-order
         reduction is not used then. (Livelock progress predicates are no obstacle: a fair cycle of
         the reduced graph is one of the system, its states are real, and a "holds" under weak
-        fairness is confirmed by an unreduced search, explore/check.py ``_search``.)"""
+        fairness is confirmed by an unreduced search, verify/check.py ``_search``.)"""
         return bool(self.always or self.never or self.never_steps or set(self.props.check) & self.handles)
 
     @property
@@ -1004,8 +1007,8 @@ class SpecChecks:
         if by_state is not None and (by_state.status == "violated" or not g.complete):
             return by_state
         if not g.complete:
-            from ..explore.properties import _incomplete
-            return _incomplete("invariant", g)
+            from ..explore.properties import incomplete_note
+            return incomplete_note("invariant", g)
         return Verdict("invariant", "holds", f"no violation in {g.n_states:,} states and {g.n_edges:,} steps")
 
     def _eventually(self, p, g, views, f: Formula, leads: Optional[Formula]):

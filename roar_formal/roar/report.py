@@ -9,30 +9,30 @@ graph between agents, whose cycle (networkx) names who waits for whom.
 from __future__ import annotations
 
 import re
-from typing import Optional
 
-from ..clf.terms import Const, Root
+from ..clf.terms import Root
+from . import vocabulary as V
 from .compile import CompiledModel
 from .run import STATE_NAMES, format_value, value_of
 
 _QUALIFIED = re.compile(r"\b([A-Za-z_][A-Za-z0-9_]*)::([A-Za-z_][A-Za-z0-9_]*)")
 
 
-def _h(t) -> Optional[str]:
-    return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
+_h = V.head_name
 
 
 def step_changes(model: CompiledModel, step) -> list[dict]:
     """The variables a step changed, old -> new, read from the ``contains`` facts it swapped
     (within one step the fresh names agree, so no replay is needed)."""
-    old = {_h(f.args[0]): f.args[1] for _m, f in step.consumed if _h(f) == "contains"}
+    old = {_h(c.cell): c.value for c in (V.contains(f) for _m, f in step.consumed if _h(f) == V.CONTAINS)}
     out = []
     for _m, f in step.produced:
-        if _h(f) != "contains":
+        if _h(f) != V.CONTAINS:
             continue
-        cell = _h(f.args[0])
+        c = V.contains(f)
+        cell = _h(c.cell)
         if cell in old and cell in model.cells:
-            a, b = format_value(value_of(old[cell])), format_value(value_of(f.args[1]))
+            a, b = format_value(value_of(old[cell])), format_value(value_of(c.value))
             if a != b:
                 agent, var = model.cells[cell]
                 out.append({"agent": agent, "var": f"{agent}::{var}", "old": a, "new": b})
@@ -49,12 +49,12 @@ def decode_state(model: CompiledModel, ctx, labels: dict, req_info: dict) -> dic
         by.setdefault(_h(f), []).append(f)
     agents = sorted(set(model.agents.values()))
     table = {a: {"variables": {}, "requests": [], "activities": []} for a in agents}
-    for f in by.get("contains", ()):
-        cell = _h(f.args[0])
+    for c in map(V.contains, by.get(V.CONTAINS, ())):
+        cell = _h(c.cell)
         if cell in model.cells:
             agent, var = model.cells[cell]
             table.setdefault(agent, {"variables": {}, "requests": [], "activities": []})
-            table[agent]["variables"][var] = format_value(value_of(f.args[1]))
+            table[agent]["variables"][var] = format_value(value_of(c.value))
     by_text = {}
     for lab, info in req_info.items():
         by_text.setdefault(info, []).append(lab)
@@ -65,34 +65,34 @@ def decode_state(model: CompiledModel, ctx, labels: dict, req_info: dict) -> dic
         cands = by_text.get((agent, text), [])
         return cands[0] if len(cands) == 1 else "R?"
 
-    states = {f.args[0]: STATE_NAMES.get(_h(f.args[1]), _h(f.args[1])) for f in by.get("rs", ())}
+    states = {x.request: STATE_NAMES.get(_h(x.state), _h(x.state)) for x in map(V.rs, by.get(V.RS, ()))}
     reqs = {}
-    for f in by.get("rq", ()):
-        agent = model.agents.get(_h(f.args[1]), "?")
-        text = model.csts.get(_h(f.args[2]), ("?", "?"))[1]
-        reqs[f.args[0]] = {"request": label(f.args[0], agent, text), "agent": agent, "constraint": text,
-                           "state": states.get(f.args[0], "?")}
+    for q in map(V.rq, by.get(V.RQ, ())):
+        agent = model.agents.get(_h(q.agent), "?")
+        text = model.csts.get(_h(q.cst), ("?", "?"))[1]
+        reqs[q.request] = {"request": label(q.request, agent, text), "agent": agent, "constraint": text,
+                           "state": states.get(q.request, "?")}
     for r in reqs.values():
         table.setdefault(r["agent"], {"variables": {}, "requests": [], "activities": []})["requests"].append(
             {k: r[k] for k in ("request", "constraint", "state")})
-    acts = {f.args[0]: f for f in by.get("act", ())}
+    acts = {a.inst: a for a in map(V.act, by.get(V.ACT, ()))}
     edges = []
-    for f in by.get("ctl", ()):
-        inst, mode = f.args[0], f.args[1]
-        a = acts.get(inst)
-        agent, task, recipe = model.recipes.get(_h(a.args[3]), ("?", "?", "?")) if a is not None else ("?", "?", "?")
-        handles = reqs.get(a.args[1], {}).get("request") if a is not None else None
+    for c in map(V.ctl, by.get(V.CTL, ())):
+        mode = c.mode
+        a = acts.get(c.inst)
+        agent, task, recipe = model.recipes.get(_h(a.recipe), ("?", "?", "?")) if a is not None else ("?", "?", "?")
+        handles = reqs.get(a.request, {}).get("request") if a is not None else None
         act = {"task": task, "recipe": recipe, "request": handles, "status": "running"}
         m = _h(mode)
-        if m == "m_make" and mode.args[0] in reqs:
-            r = reqs[mode.args[0]]
+        if m == "m_make" and V.unwrap(mode) in reqs:
+            r = reqs[V.unwrap(mode)]
             act.update(status="waiting for a make", waits_for=[r["agent"]], on=r["request"],
                        text=f"make {r['request']} ({r['constraint']}) handled by {r['agent']}, {r['state']}")
             edges.append({"from": agent, "to": r["agent"], "request": r["request"],
                           "why": f"{task}.{recipe} waits for {r['request']} ({r['constraint']})"})
         elif m == "m_block":
-            code = f.args[2]
-            site = model.sites.get(_h(code.args[0])) if code.args else None
+            code = c.code
+            site = model.sites.get(_h(V.ccons(code).site)) if code.args else None
             text = site.text if site else "a wait"
             owners = sorted({x for x, _v in _QUALIFIED.findall(text) if x in table}) or [agent]
             act.update(status="blocked in a wait", waits_for=owners, on=None,

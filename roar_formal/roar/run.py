@@ -27,6 +27,8 @@ from ..clf.terms import Const, Root, const, num_term, num_value, string_term, st
 from ..errors import RoarError
 from .compile import CompiledModel, num_lit
 from .functional import Outcome, Registry
+from . import vocabulary as V
+from .pretty import string_literal
 
 __all__ = ["Fault", "RoarEvent", "RunResult", "run_model", "parse_fault", "value_of", "Values", "Narrator",
            "Resolver", "collect_result", "list_items", "format_value", "describe_ec"]
@@ -99,16 +101,16 @@ def value_of(t) -> object:
     """A CLF value term as a Python value (numbers as int or Fraction)."""
     h = t.head.name if isinstance(t.head, Const) else None
     if h == "vnum":
-        q = num_value(t.args[0])
+        q = num_value(V.unwrap(t))
         return int(q) if q.denominator == 1 else q
     if h == "vbool":
-        return t.args[0].head.name == "tt"
+        return V.unwrap(t).head.name == "tt"
     if h == "vstr":
-        return string_value(t.args[0])
+        return string_value(V.unwrap(t))
     if h == "vrec":
-        return tuple(value_of(x) for x in list_items(t.args[0]))
+        return tuple(value_of(x) for x in list_items(V.unwrap(t)))
     if h == "vopq":
-        return ("opaque", int(num_value(t.args[0])))
+        return ("opaque", int(num_value(V.unwrap(t))))
     if h in ("vnil", "vcons"):
         return [value_of(x) for x in list_items(t)]
     return show(t)
@@ -117,8 +119,9 @@ def value_of(t) -> object:
 def list_items(t):
     out = []
     while isinstance(t.head, Const) and t.head.name == "vcons":
-        out.append(t.args[0])
-        t = t.args[1]
+        c = V.cons(t)
+        out.append(c.head)
+        t = c.tail
     return out
 
 
@@ -156,7 +159,7 @@ class Values:
         """The Python value of a term; a struct of a known type is a dict by field name."""
         if ty in self.model.structs and isinstance(t.head, Const) and t.head.name == "vrec":
             return {n: self.python(x, self.model.field_types.get(ty, {}).get(n))
-                    for n, x in zip(self.model.structs[ty], list_items(t.args[0]))}
+                    for n, x in zip(self.model.structs[ty], list_items(V.unwrap(t)))}
         v = value_of(t)
         if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque" and 1 <= v[1] <= len(self.opaque):
             return self.opaque[v[1] - 1]
@@ -225,8 +228,8 @@ class Resolver:
                 v = prim(*py)
             except RoarError:
                 raise
-            except Exception as exc:  # the functional layer failed: a primitive failure
-                return None, f"raised {type(exc).__name__}: {exc}", {}
+            except Exception as exc:  # a bug of the functional layer: the user's to fix, located
+                raise primitive_error(self.model, fc, prim, py, exc) from None
             if rty is None or v is None and rty != "bool":
                 return const("vunit"), "done", {}
             return self.values.term(v, rty), "returned", {}
@@ -241,6 +244,24 @@ class Resolver:
         if not o.success:
             return None
         return self.values.term(_default(rty, self.model), rty)
+
+
+def primitive_error(model: CompiledModel, fc: str, prim, args: list, exc: BaseException) -> RoarError:
+    """A primitive that raised: a located error naming it, its arguments and the Python
+    exception (a primitive fails by returning false or by a declared outcome; an exception is a
+    bug in the functional layer, never read as a failure to retry)."""
+    owner, name = model.functions.get(fc, (None, prim.name))
+    qual = f"{owner}::{name}" if owner else name
+    sites = model.call_sites.get(fc, [])
+    notes = [f"called as {name}({', '.join(map(repr, args))})"]
+    if len(sites) > 1:
+        notes.append("other calls: " + ", ".join(str(p) for p in sites[1:]))
+    if isinstance(exc, TypeError) and "argument" in str(exc):
+        notes.append(f"the spec calls it with {len(args)} argument(s); check the Python function's parameters")
+    else:
+        notes.append("a primitive reports a failure by returning false or through its declared outcomes; "
+                     "an exception is a bug of the functional layer")
+    return RoarError(f"primitive '{qual}' raised {type(exc).__name__}: {exc}", sites[0] if sites else None, notes)
 
 
 def _default(rty, model):
@@ -292,169 +313,207 @@ class Narrator:
         return lab
 
     def events(self, i: int, step) -> list[RoarEvent]:
-        m = self.m
+        """The ROAR events CLF step number ``i`` means, in the order a reader expects them: the
+        task tree's bookkeeping first (which request each new activation handles), then requests
+        and their states, the task tree's changes, primitive calls and variable writes."""
+        st = _StepFacts(i, step)
+        self._note_activations(st)
         out: list[RoarEvent] = []
-        prod = [f for _mode, f in step.produced if type(f) is Root]
-        consumed = [f for _m, f in step.consumed if type(f) is Root]
-        groups = {id(prod): _by_family(prod), id(consumed): _by_family(consumed)}
+        for part in (self._requests_sent, self._state_changes, self._aborts, self._conflicts, self._tasks_chosen,
+                     self._recipes, self._primitives, self._writes, self._pauses):
+            out.extend(part(st))
+        return out
 
-        def by(fam, facts):
-            return groups[id(facts)].get(fam, ())
-        rule = step.rule
-        # activations: which request each handles (the task tree's edges go through them)
-        for fam in ("act", "chk"):
-            for f in by(fam, prod):
-                if f.args[0] not in self.inst_req:
-                    self.inst_req[f.args[0]] = self.label(f.args[1])
-        # requests created
-        for f in by("rq", prod):
-            r = f.args[0]
+    # the task tree (for TCA): which request each activation handles, each request's parent
+    def _note_activations(self, st: "_StepFacts") -> None:
+        for fam, decode in ((V.ACT, V.act), (V.CHK, V.chk)):
+            for a in map(decode, st.made(fam)):
+                if a.inst not in self.inst_req:
+                    self.inst_req[a.inst] = self.label(a.request)
+
+    def _requests_sent(self, st: "_StepFacts"):
+        m = self.m
+        for q in map(V.rq, st.made(V.RQ)):
+            r = q.request
             new = r not in self.labels
             if new or self.labels[r] not in self.req_meta:
                 lab = self.label(r)
-                agent, text = m.csts.get(self._name(f.args[2]), ("?", "?"))
-                agent = m.agents.get(self._name(f.args[1]), agent)
+                agent, text = m.csts.get(self._name(q.cst), ("?", "?"))
+                agent = m.agents.get(self._name(q.agent), agent)
                 self.req_info.setdefault(lab, (agent, text))
-                kind = self._name(f.args[4]) if isinstance(f.args[4].head, Const) else "?"
-                emitter = f.args[3]
+                kind = self._name(q.kind) if isinstance(q.kind.head, Const) else "?"
+                emitter = q.emitter
                 outside = isinstance(emitter.head, Const) and emitter.head.name == "itop"
-                site = m.sites.get(site_of(rule))
+                site = m.sites.get(site_of(st.rule))
                 self.req_meta[lab] = {"parent": None if outside else self.inst_req.get(emitter),
                                       "rkind": {"k_make": "make", "k_ensure": "ensure"}.get(kind, "task"),
                                       "emitter": None if outside else self.inst_label(emitter),
                                       "site": site.const if site is not None and not outside else None}
                 if new and kind in ("k_make", "k_ensure"):
                     sender = site.agent if site else "outside"
-                    out.append(RoarEvent(i, "sent", sender,
-                                         f"{kind[2:]} {lab} to {agent}: {text}", {"request": lab,
-                                                                                   **self.req_meta[lab]}))
-        # state changes
-        old = {f.args[0]: self._name(f.args[1]) for f in by("rs", consumed)}
-        for f in by("rs", prod):
-            r, s = f.args[0], self._name(f.args[1])
+                    yield RoarEvent(st.i, "sent", sender, f"{kind[2:]} {lab} to {agent}: {text}",
+                                    {"request": lab, **self.req_meta[lab]})
+
+    def _state_changes(self, st: "_StepFacts"):
+        old = {x.request: self._name(x.state) for x in map(V.rs, st.used(V.RS))}
+        made = [V.rs(f) for f in st.made(V.RS)]
+        for x in made:
+            r, s = x.request, self._name(x.state)
             if old.get(r) != s:
                 lab = self.label(r)
                 agent, text = self.req_info.get(lab, ("?", "?"))
                 if s == "s_sent" and r not in old:
                     continue
                 prev = old.get(r)
-                out.append(RoarEvent(i, "state", agent, f"{lab} {STATE_NAMES.get(prev, 'new') if prev else 'new'}"
-                                     f" -> {STATE_NAMES[s]}  ({text})",
-                                     {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s],
-                                      **self.req_meta.get(lab, {})}))
-        for f in by("rs", consumed):
-            r = f.args[0]
-            if not any(g.args[0] is r for g in by("rs", prod)) and rule.startswith("aborted"):
+                yield RoarEvent(st.i, "state", agent, f"{lab} {STATE_NAMES.get(prev, 'new') if prev else 'new'}"
+                                f" -> {STATE_NAMES[s]}  ({text})",
+                                {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s],
+                                 **self.req_meta.get(lab, {})})
+        for x in map(V.rs, st.used(V.RS)):
+            r = x.request
+            if not any(y.request is r for y in made) and st.rule.startswith("aborted"):
                 lab = self.label(r)
                 agent, text = self.req_info.get(lab, ("?", "?"))
-                out.append(RoarEvent(i, "state", agent, f"{lab} {STATE_NAMES.get(self._name(f.args[1]))} -> aborted"
-                                     f"  ({text})", {"request": lab, "from": STATE_NAMES.get(self._name(f.args[1])),
-                                                     "to": "aborted", **self.req_meta.get(lab, {})}))
-        # aborts sent, concurrency issues
-        for f in by("abortreq", prod):
-            lab = self.label(f.args[0])
+                was = STATE_NAMES.get(self._name(x.state))
+                yield RoarEvent(st.i, "state", agent, f"{lab} {was} -> aborted  ({text})",
+                                {"request": lab, "from": was, "to": "aborted", **self.req_meta.get(lab, {})})
+
+    def _aborts(self, st: "_StepFacts"):
+        for a in map(V.abortreq, st.made(V.ABORTREQ)):
+            lab = self.label(a.request)
             agent, text = self.req_info.get(lab, ("?", "?"))
-            site = m.sites.get(site_of(rule))
-            who = site.agent if site else (self.acts.get(_first_arg(consumed, "act"), ("?",))[0])
-            out.append(RoarEvent(i, "abort", who, f"abort {lab} ({agent}: {text})", {"request": lab}))
+            site = self.m.sites.get(site_of(st.rule))
+            acts = st.used(V.ACT)
+            who = site.agent if site else self.acts.get(V.act(acts[0]).inst if acts else None, ("?",))[0]
+            yield RoarEvent(st.i, "abort", who, f"abort {lab} ({agent}: {text})", {"request": lab})
+
+    def _conflicts(self, st: "_StepFacts"):
+        rule = st.rule
         if rule == "concurrency_issue":
-            for f in by("cres", prod):
-                lab, held = self.label(f.args[0]), self.label(f.args[1])
+            for c in map(V.cres, st.made(V.CRES)):
+                lab, held = self.label(c.request), self.label(c.at)
                 agent, text = self.req_info.get(lab, ("?", "?"))
-                out.append(RoarEvent(i, "conflict", agent, f"{lab} ({text}) conflicts with {held}, which holds "
-                                     f"the task it needs: asking the calling context of {held}",
-                                     {"request": lab, "holder": held}))
+                yield RoarEvent(st.i, "conflict", agent, f"{lab} ({text}) conflicts with {held}, which holds "
+                                f"the task it needs: asking the calling context of {held}",
+                                {"request": lab, "holder": held})
         if rule in ("ask_alternative", "ask_caller", "no_alternative"):
-            for f in by("cres", consumed):
-                lab, at = self.label(f.args[0]), self.label(f.args[1])
+            for c in map(V.cres, st.used(V.CRES)):
+                lab, at = self.label(c.request), self.label(c.at)
                 agent = self.req_info.get(at, ("?",))[0]
                 verdict = {"ask_alternative": "has an alternative: it reconfigures",
                            "ask_caller": "has no alternative: asking its caller",
                            "no_alternative": "is a request from outside: the conflict cannot be resolved"}[rule]
-                out.append(RoarEvent(i, "calling-context", agent, f"for {lab}: the emitter of {at} {verdict}",
-                                     {"request": lab, "at": at}))
-        # tasks chosen
-        if rule == "tasks_chosen":
-            for f in by("hs", prod):
-                ph = f.args[1]   # h_write (vsome Tasks)
-                ts = [m.tasks[self._name(x.args[0])][1] for x in list_items(ph.args[0].args[0])]
-                lab = self.label(f.args[0])
-                agent = self.req_info.get(lab, ("?",))[0]
-                out.append(RoarEvent(i, "tasks", agent, f"{lab}: tasks {' then '.join(ts)}",
-                                     {"request": lab, "tasks": ts}))
-        # recipe chosen / ended
-        old_insts = {g.args[0] for g in by("act", consumed)}
-        for f in by("act", prod):
-            if f.args[0] not in old_insts:
-                agent, task, recipe = m.recipes[self._name(f.args[3])]
-                self.acts[f.args[0]] = (agent, task, recipe)
-                lab = self.label(f.args[1])
-                out.append(RoarEvent(i, "recipe", agent, f"{lab}: task {task}, recipe {recipe}",
-                                     {"request": lab, "task": task, "recipe": recipe}))
-        for f in by("rdone", prod):
-            agent, task, recipe = m.recipes[self._name(f.args[1])]
-            reason = _reason(f.args[2], m)
-            lab = self.label(f.args[0])
-            out.append(RoarEvent(i, "recipe-end", agent, f"{lab}: recipe {recipe} " +
-                                 ("done" if reason == "ok" else f"ended: {reason}"),
-                                 {"request": lab, "recipe": recipe, "reason": reason}))
-        # primitives
-        for f in by("pending", prod):
-            fc = self._name(f.args[0])
-            owner, name = m.functions[fc]
-            args = ", ".join(_show_value(x) for x in list_items(f.args[1]))
+                yield RoarEvent(st.i, "calling-context", agent, f"for {lab}: the emitter of {at} {verdict}",
+                                {"request": lab, "at": at})
+
+    def _tasks_chosen(self, st: "_StepFacts"):
+        if st.rule != "tasks_chosen":
+            return
+        for h in map(V.hs, st.made(V.HS)):
+            chosen = V.unwrap(V.unwrap(h.phase))   # h_write (vsome Tasks)
+            ts = [self.m.tasks[self._name(V.unwrap(x))][1] for x in list_items(chosen)]
+            lab = self.label(h.request)
+            agent = self.req_info.get(lab, ("?",))[0]
+            yield RoarEvent(st.i, "tasks", agent, f"{lab}: tasks {' then '.join(ts)}", {"request": lab, "tasks": ts})
+
+    def _recipes(self, st: "_StepFacts"):
+        m = self.m
+        old_insts = {V.act(g).inst for g in st.used(V.ACT)}
+        for a in map(V.act, st.made(V.ACT)):
+            if a.inst not in old_insts:
+                agent, task, recipe = m.recipes[self._name(a.recipe)]
+                self.acts[a.inst] = (agent, task, recipe)
+                lab = self.label(a.request)
+                yield RoarEvent(st.i, "recipe", agent, f"{lab}: task {task}, recipe {recipe}",
+                                {"request": lab, "task": task, "recipe": recipe})
+        for d in map(V.rdone, st.made(V.RDONE)):
+            agent, task, recipe = m.recipes[self._name(d.recipe)]
+            reason = _reason(d.reason, m)
+            lab = self.label(d.request)
+            yield RoarEvent(st.i, "recipe-end", agent, f"{lab}: recipe {recipe} " +
+                            ("done" if reason == "ok" else f"ended: {reason}"),
+                            {"request": lab, "recipe": recipe, "reason": reason})
+
+    def _primitives(self, st: "_StepFacts"):
+        m, rule = self.m, st.rule
+        for p in map(V.pending, st.made(V.PENDING)):
+            owner, name = m.functions[self._name(p.fn)]
+            args = ", ".join(_show_value(x) for x in list_items(p.args))
             site = m.sites.get(site_of(rule))
             agent = site.agent if site else (owner or "?")
-            self.calls[f.args[2]] = (agent, f"{name}({args})")
+            self.calls[p.dest] = (agent, f"{name}({args})")
             self.n_calls += 1
-            cid = self.call_ids[f.args[2]] = f"C{self.n_calls}"
-            inst = next((g.args[0] for fam in ("ctl", "chk") for g in by(fam, consumed)), None)
-            out.append(RoarEvent(i, "primitive-start", agent, f"{name}({args})",
-                                 {"function": name, "call": cid, "request": self.inst_req.get(inst)}))
-        for f in by("return", consumed):
-            if f.args[1] in self.calls:
-                agent, call = self.calls.pop(f.args[1])
+            cid = self.call_ids[p.dest] = f"C{self.n_calls}"
+            inst = next((a.inst for fam, decode in ((V.CTL, V.ctl), (V.CHK, V.chk)) for a in map(decode, st.used(fam))),
+                        None)
+            yield RoarEvent(st.i, "primitive-start", agent, f"{name}({args})",
+                            {"function": name, "call": cid, "request": self.inst_req.get(inst)})
+        for r in map(V.return_, st.used(V.RETURN)):
+            if r.dest in self.calls:
+                agent, call = self.calls.pop(r.dest)
                 dropped = " (dropped: the recipe was stopped)" if rule == "drop_result" else ""
-                out.append(RoarEvent(i, "primitive-end", agent, f"{call} = {_show_value(f.args[0])}{dropped}",
-                                     {"value": _show_value(f.args[0]), "dropped": bool(dropped),
-                                      "call": self.call_ids.get(f.args[1])}))
-        for f in by("callfail", consumed):
-            if f.args[0] in self.calls:
-                agent, call = self.calls.pop(f.args[0])
-                out.append(RoarEvent(i, "primitive-end", agent, f"{call} failed",
-                                     {"failed": True, "call": self.call_ids.get(f.args[0])}))
+                yield RoarEvent(st.i, "primitive-end", agent, f"{call} = {_show_value(r.value)}{dropped}",
+                                {"value": _show_value(r.value), "dropped": bool(dropped),
+                                 "call": self.call_ids.get(r.dest)})
+        for c in map(V.callfail, st.used(V.CALLFAIL)):
+            if c.dest in self.calls:
+                agent, call = self.calls.pop(c.dest)
+                yield RoarEvent(st.i, "primitive-end", agent, f"{call} failed",
+                                {"failed": True, "call": self.call_ids.get(c.dest)})
         # a call withdrawn: its pending fact consumed with no answer made (the recipe was stopped)
-        answered = {g.args[-1] for fam in ("return", "callfail") for g in by(fam, prod)}
-        for f in by("pending", consumed):
-            d = f.args[2]
+        answered = ({V.return_(g).dest for g in st.made(V.RETURN)}
+                    | {V.callfail(g).dest for g in st.made(V.CALLFAIL)})
+        for p in map(V.pending, st.used(V.PENDING)):
+            d = p.dest
             if d in self.calls and d not in answered:
                 agent, call = self.calls.pop(d)
-                out.append(RoarEvent(i, "primitive-end", agent, f"{call} withdrawn (the recipe was stopped)",
-                                     {"withdrawn": True, "call": self.call_ids.get(d)}))
-        # variable writes
-        before = {f.args[0]: f.args[1] for f in by("contains", consumed)}
-        site = m.sites.get(site_of(rule))
+                yield RoarEvent(st.i, "primitive-end", agent, f"{call} withdrawn (the recipe was stopped)",
+                                {"withdrawn": True, "call": self.call_ids.get(d)})
+
+    def _writes(self, st: "_StepFacts"):
+        m = self.m
+        before = {c.cell: c.value for c in map(V.contains, st.used(V.CONTAINS))}
+        site = m.sites.get(site_of(st.rule))
         written = f"v_{site.agent}_{site.var}" if site is not None and site.kind == "set" else None
-        for f in by("contains", prod):
-            c = f.args[0]
-            if c in before and (before[c] is not f.args[1] or self._name(c) == written):
+        for x in map(V.contains, st.made(V.CONTAINS)):
+            c = x.cell
+            if c in before and (before[c] is not x.value or self._name(c) == written):
                 cell = self._name(c)
                 if cell in m.cells:
                     agent, var = m.cells[cell]
-                    out.append(RoarEvent(i, "write", agent, f"{agent}::{var} = {_show_value(f.args[1])}",
-                                         {"var": f"{agent}::{var}", "value": _show_value(f.args[1])}))
-        # pause / resume of an activation (its pause state goes from go to paused or back)
-        before_z = {f.args[0]: self._name(f.args[1]) for f in by("rstat", consumed)}
-        for f in by("rstat", prod):
-            i_ = f.args[0]
-            was, now = before_z.get(i_), self._name(f.args[1])
-            if was is None or (was == "go") == (now == "go") or rule.startswith("kill"):
+                    yield RoarEvent(st.i, "write", agent, f"{agent}::{var} = {_show_value(x.value)}",
+                                    {"var": f"{agent}::{var}", "value": _show_value(x.value)})
+
+    # pause / resume of an activation (its pause state goes from go to paused or back)
+    def _pauses(self, st: "_StepFacts"):
+        before_z = {z.inst: self._name(z.pause) for z in map(V.rstat, st.used(V.RSTAT))}
+        for z in map(V.rstat, st.made(V.RSTAT)):
+            i_ = z.inst
+            was, now = before_z.get(i_), self._name(z.pause)
+            if was is None or (was == "go") == (now == "go") or st.rule.startswith("kill"):
                 continue
             who = self.acts.get(i_, ("?", "?", "?"))
             kind = "resume" if now == "go" else "pause"
-            out.append(RoarEvent(i, kind, who[0], f"recipe {who[2]} {'resumed' if kind == 'resume' else 'paused'}",
-                                 {"recipe": who[2]}))
-        return out
+            yield RoarEvent(st.i, kind, who[0], f"recipe {who[2]} {'resumed' if kind == 'resume' else 'paused'}",
+                            {"recipe": who[2]})
+
+
+class _StepFacts:
+    """One step's facts grouped by family: ``made`` (produced) and ``used`` (consumed)."""
+
+    __slots__ = ("i", "rule", "_made", "_used")
+
+    def __init__(self, i: int, step):
+        self.i = i
+        self.rule = step.rule
+        self._made = _by_family(f for _mode, f in step.produced if type(f) is Root)
+        self._used = _by_family(f for _m, f in step.consumed if type(f) is Root)
+
+    def made(self, fam: str):
+        return self._made.get(fam, ())
+
+    def used(self, fam: str):
+        return self._used.get(fam, ())
 
 
 def _by_family(facts) -> dict:
@@ -464,13 +523,6 @@ def _by_family(facts) -> dict:
         if isinstance(f.head, Const):
             out.setdefault(f.head.name, []).append(f)
     return out
-
-
-def _first_arg(facts, fam):
-    for f in facts:
-        if isinstance(f.head, Const) and f.head.name == fam:
-            return f.args[0]
-    return None
 
 
 def site_of(rule: str) -> str:
@@ -485,12 +537,12 @@ def _reason(t, m) -> str:
     if h == "k_abort":
         return "aborted"
     if h == "k_local":
-        site = m.sites.get(t.args[0].head.name)
+        site = m.sites.get(V.unwrap(t).head.name)
         return f"local failure at {site.pos.line}:{site.pos.col} ({site.text})" if site else "local failure"
     if h == "k_cst":
-        return f"constraint failed: {m.csts.get(t.args[0].head.name, ('?', '?'))[1]}"
+        return f"constraint failed: {m.csts.get(V.k_cst(t).cst.head.name, ('?', '?'))[1]}"
     if h == "k_switch":
-        return f"switched away from {m.csts.get(t.args[0].head.name, ('?', '?'))[1]}"
+        return f"switched away from {m.csts.get(V.unwrap(t).head.name, ('?', '?'))[1]}"
     return show(t)
 
 
@@ -508,7 +560,7 @@ def format_value(v) -> str:
         except RoarError:
             return repr(float(v))
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        return string_literal(v)
     if isinstance(v, tuple) and len(v) == 2 and v[0] == "opaque":
         return f"<opaque {v[1]}>"
     if isinstance(v, (tuple, list)):
@@ -521,18 +573,18 @@ def describe_ec(t, m: CompiledModel) -> list[str]:
     for x in list_items(t):
         h = x.head.name
         if h == "vcst":
-            out.append(f"constraint failed: {m.csts.get(x.args[0].head.name, ('?', '?'))[1]}")
+            out.append(f"constraint failed: {m.csts.get(V.unwrap(x).head.name, ('?', '?'))[1]}")
         elif h == "vviol":
-            out.append(f"post-condition violated: {m.csts.get(x.args[0].head.name, ('?', '?'))[1]}")
+            out.append(f"post-condition violated: {m.csts.get(V.unwrap(x).head.name, ('?', '?'))[1]}")
         elif h == "vtsk":
-            agent, task = m.tasks.get(x.args[0].head.name, ("?", "?"))
+            agent, task = m.tasks.get(V.unwrap(x).head.name, ("?", "?"))
             out.append(f"task failed: {agent}::{task}")
         elif h == "vconf":
-            agent, task = m.tasks.get(x.args[0].head.name, ("?", "?"))
+            agent, task = m.tasks.get(V.unwrap(x).head.name, ("?", "?"))
             out.append(f"concurrency: task {agent}::{task} is held by another constraint, and no agent of "
                        f"its calling context has an alternative")
         elif h == "vsite":
-            s = m.sites.get(x.args[0].head.name)
+            s = m.sites.get(V.unwrap(x).head.name)
             out.append(f"local failure: {s.agent}.{s.task}.{s.recipe} at {s.pos.line}:{s.pos.col}: {s.text}"
                        if s else "local failure")
         else:
@@ -567,8 +619,8 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
                 on_event(ev)
 
     for _mode, f, _n in ctx.facts():
-        if type(f) is Root and isinstance(f.head, Const) and f.head.name == "rq":
-            narrator.label(f.args[0])
+        if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.RQ:
+            narrator.label(V.rq(f).request)
             narrator.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
     runner = Run(prog.templates, ctx, seed=seed, fair=fair, prover=prog.prover(), on_step=on_step)
     pending = Const("pending")
@@ -583,9 +635,10 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             break
         # answer the oldest call first (all pending calls were made while the rest waited)
         for f in calls:
-            fc, args, d = f.args[0].head.name, list_items(f.args[1]), f.args[2]
+            p = V.pending(f)
+            fc, args, d = p.fn.head.name, list_items(p.args), p.dest
             result, how, writes = resolver.answer(fc, args)
-            ans = const("return", result, d) if result is not None else const("callfail", d)
+            ans = const(V.RETURN, result, d) if result is not None else const(V.CALLFAIL, d)
             eaten, made = [f], [ans]
             owner = model.functions[fc][0]
             for var, value in writes.items():   # an outcome's writes (declared, or forced by a fault)
@@ -594,7 +647,8 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
                 old = next((g for g in cells_of(ctx, cell)), None)
                 if old is not None:
                     eaten.append(old)
-                    made.append(const("contains", old.args[0], values.term(value, model.cell_types.get(cell))))
+                    made.append(const(V.CONTAINS, V.contains(old).cell,
+                                      values.term(value, model.cell_types.get(cell))))
             step = runner.external(eaten, made, rule="functional_layer")
             on_step(step, ctx)
             external[len(steps)] = (f, ans)
@@ -611,9 +665,9 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
 
 
 def cells_of(ctx, cell: str):
-    bag = ctx.index.get(Const("contains"))
+    bag = ctx.index.get(Const(V.CONTAINS))
     for f in (bag.items if bag else ()):
-        if f.args[0].head.name == cell:
+        if V.contains(f).cell.head.name == cell:
             yield f
 
 
@@ -624,13 +678,19 @@ def collect_result(model, ctx, steps, events, quiescent, narrator) -> RunResult:
         if type(f) is not Root or not isinstance(f.head, Const):
             continue
         h = f.head.name
-        if h == "rs" and narrator.labels.get(f.args[0]) == "R0":
-            outcome = STATE_NAMES.get(f.args[1].head.name, "?")
-        elif h == "contains" and f.args[0].head.name in model.cells:
-            agent, var = model.cells[f.args[0].head.name]
-            final[f"{agent}::{var}"] = value_of(f.args[1])
-        elif h == "ecf" and narrator.labels.get(f.args[0]) == "R0":
-            ec = describe_ec(f.args[1], model)
+        if h == V.RS:
+            x = V.rs(f)
+            if narrator.labels.get(x.request) == "R0":
+                outcome = STATE_NAMES.get(x.state.head.name, "?")
+        elif h == V.CONTAINS:
+            c = V.contains(f)
+            if c.cell.head.name in model.cells:
+                agent, var = model.cells[c.cell.head.name]
+                final[f"{agent}::{var}"] = value_of(c.value)
+        elif h == V.ECF:
+            e = V.ecf(f)
+            if narrator.labels.get(e.request) == "R0":
+                ec = describe_ec(e.ec, model)
     if outcome == "unfinished" and not steps:
         outcome = "unfinished"
     reqs = {lab: f"{a}: {t}" for lab, (a, t) in narrator.req_info.items()}

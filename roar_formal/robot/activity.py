@@ -37,8 +37,8 @@ class CallResult:
         return not self.failed and self.value is not False
 
     def as_json(self) -> dict:
-        return {"value": _jsonable(self.value), "failed": self.failed, "status": self.status,
-                "detail": {k: _jsonable(v) for k, v in self.detail.items()}}
+        return {"value": jsonable(self.value), "failed": self.failed, "status": self.status,
+                "detail": {k: jsonable(v) for k, v in self.detail.items()}}
 
     @staticmethod
     def from_json(d: dict) -> "CallResult":
@@ -54,13 +54,13 @@ def failed(status: str, value: Any = None, **detail) -> CallResult:
     return CallResult(value, True, status, detail)
 
 
-def _jsonable(v):
+def jsonable(v):
     if isinstance(v, float):
         return round(v, 6) if math.isfinite(v) else None
     if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
+        return [jsonable(x) for x in v]
     if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
+        return {str(k): jsonable(x) for k, x in v.items()}
     if v is None or isinstance(v, (bool, int, str)):
         return v
     return repr(v)

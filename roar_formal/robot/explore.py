@@ -47,10 +47,11 @@ from ..clf.state import canonical_key
 from ..clf.terms import Const, Root, const
 from ..errors import RoarError
 from ..explore.system import Options, Successor
+from ..roar import vocabulary as V
 from ..roar.compile import CompiledModel
 from ..roar.explore import RoarSystem, roar_final
 from ..roar.functional import Registry
-from ..roar.run import Values, list_items
+from ..roar.run import Values, list_items, primitive_error
 from .activity import Activity, CallResult
 from .robot import BLOCKED_WINDOW, WAIT_LIMIT, Robot
 from .scenario import Scenario
@@ -384,7 +385,8 @@ class RobotTree:
 
 def start_call(model: CompiledModel, registry: Registry, robot: Robot, fc: str, args: list, now_fc=()):
     """Start a call of function ``fc`` on ``robot``: (activity handle, None) while it runs, or
-    (None, result) when it ended at once. A primitive that raises fails (a primitive failure)."""
+    (None, result) when it ended at once. A primitive that raises is a located error (a bug of the
+    binding), as in ``run``."""
     if fc in now_fc:
         return None, CallResult(int(round(robot.time * 1000)), False, "now", {})
     owner, name = model.functions[fc]
@@ -401,8 +403,8 @@ def start_call(model: CompiledModel, registry: Registry, robot: Robot, fc: str, 
         return None, CallResult(v, False, "returned", {})
     except RoarError:
         raise
-    except Exception as exc:   # the functional layer failed: a primitive failure
-        return None, CallResult(None, True, f"raised {type(exc).__name__}: {exc}", {})
+    except Exception as exc:   # a bug of the binding: located, never a failure to retry
+        raise primitive_error(model, fc, prim, args, exc) from None
 
 
 # ---------------------------------------------------------------------------------------------- the system
@@ -485,7 +487,7 @@ class _Part:
         self.produced = produced
 
 
-_PENDING, _RUN, _SLEEP = Const("pending"), Const("rb_run"), Const("rb_sleep")
+_PENDING, _RUN, _SLEEP = Const(V.PENDING), Const(V.RB_RUN), Const(V.RB_SLEEP)
 
 
 def _bag(ctx: Context, fam: Const) -> list:
@@ -525,8 +527,8 @@ class RobotSystem(RoarSystem):
         choices = self.program.steps(state.ctx)
         if choices:
             return [self._agent(state, c) for c in choices]
-        running = {f.args[0] for f in _bag(state.ctx, _RUN)}
-        fresh = [f for f in _bag(state.ctx, _PENDING) if f.args[2] not in running]
+        running = {V.rb_run(f).dest for f in _bag(state.ctx, _RUN)}
+        fresh = [f for f in _bag(state.ctx, _PENDING) if V.pending(f).dest not in running]
         if fresh:
             return self._launches(state, fresh)
         if running or _bag(state.ctx, _SLEEP):
@@ -557,11 +559,11 @@ class RobotSystem(RoarSystem):
             self._monitor(ctx, nxt, step)
         period = poll_period(self.model, step)
         if period is not None:
-            ctl = next(f for _m, f in step.produced if type(f) is Root and f.head.name == "ctl")
+            ctl = next(f for _m, f in step.produced if type(f) is Root and f.head.name == V.CTL)
             nxt.remove_fact(ctl, LIN)
-            nxt.add_fact(const("rb_sleep", ctl, _tick_const(max(1, _ticks(period, self.dt)))), LIN)
+            nxt.add_fact(const(V.RB_SLEEP, ctl, _tick_const(max(1, _ticks(period, self.dt)))), LIN)
         handles = state.handles
-        if any(_h_of(f) == "pending" for _m, f in step.consumed):   # a call withdrawn
+        if any(_h_of(f) == V.PENDING for _m, f in step.consumed):   # a call withdrawn
             handles = {d: h for d, h in handles.items() if _present_dest(nxt, d)}
         return Successor(choice.rule, self.agent_of(choice, ctx), self._progress(choice.rule),
                          RobotState(nxt, state.node, handles), step)
@@ -571,10 +573,11 @@ class RobotSystem(RoarSystem):
         values = self.values
         calls = []
         for f in fresh:
-            fc = f.args[0].head.name
+            p = V.pending(f)
+            fc = p.fn.head.name
             owner, name = self.model.functions[fc]
             tys = self.model.fn_params.get(fc, [])
-            args = [values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(f.args[1]))]
+            args = [values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(p.args))]
             calls.append((f, fc, f"{owner}::{name}" if owner else name, CallArgs(args)))
         if len(calls) <= MAX_ORDERED:
             orders = list(itertools.permutations(calls))
@@ -602,10 +605,11 @@ class RobotSystem(RoarSystem):
         for (f, fc, fn, args), (h, res) in zip(order, node.results):
             shown.append((fn, args.values, res))
             if res is None:
-                mark = const("rb_run", f.args[2])
+                dest = V.pending(f).dest
+                mark = const(V.RB_RUN, dest)
                 nxt.add_fact(mark, LIN)
                 produced.append((LIN, mark))
-                handles[f.args[2]] = h
+                handles[dest] = h
                 continue
             self._answer_call(nxt, f, fc, res, consumed, produced, parts)
         step = RobotStep("functional_layer" if parts else "robot_launch", consumed, produced, event, parts, shown)
@@ -625,7 +629,7 @@ class RobotSystem(RoarSystem):
     # ------------------------------------------------------------------ the physics advancing
     def _advance(self, state: RobotState) -> Successor:
         ctx = state.ctx
-        sleepers = [(f, _const_ticks(f.args[1])) for f in _bag(ctx, _SLEEP)]
+        sleepers = [(f, _const_ticks(V.rb_sleep(f).ticks)) for f in _bag(ctx, _SLEEP)]
         node = state.node
         until = node.tick + min(r for _f, r in sleepers) if sleepers else None
         event = ("advance", until)
@@ -635,19 +639,19 @@ class RobotSystem(RoarSystem):
         handles = dict(state.handles)
         by_handle = {h: d for d, h in handles.items()}
         consumed, produced, parts, shown = [], [], [], []
-        pend = {f.args[2]: f for f in _bag(ctx, _PENDING)}
+        pend = {V.pending(f).dest: f for f in _bag(ctx, _PENDING)}
         for h, res in child.results:
             d = by_handle.get(h)
             if d is None:
                 continue   # an activity whose call was withdrawn: its result goes nowhere
             del handles[d]
-            mark = const("rb_run", d)
+            mark = const(V.RB_RUN, d)
             nxt.remove_fact(mark, LIN)
             consumed.append((LIN, mark))
             f = pend.get(d)
             if f is None:
                 continue
-            fc = f.args[0].head.name
+            fc = V.pending(f).fn.head.name
             self._answer_call(nxt, f, fc, res, consumed, produced, parts)
             owner, name = self.model.functions[fc]
             self.tree._classify(fc, res)
@@ -656,7 +660,8 @@ class RobotSystem(RoarSystem):
             nxt.remove_fact(f, LIN)
             consumed.append((LIN, f))
             left = rem - elapsed
-            g = f.args[0] if left <= 0 else const("rb_sleep", f.args[0], _tick_const(left))
+            sleeping = V.rb_sleep(f).ctl
+            g = sleeping if left <= 0 else const(V.RB_SLEEP, sleeping, _tick_const(left))
             nxt.add_fact(g, LIN)
             produced.append((LIN, g))
             if left <= 0:
@@ -679,11 +684,12 @@ def _h_of(t) -> Optional[str]:
 
 
 def _present_dest(ctx: Context, d) -> bool:
-    return any(f.args[2] is d for f in _bag(ctx, _PENDING))
+    return any(V.pending(f).dest is d for f in _bag(ctx, _PENDING))
 
 
 def _answer(f, term):
-    return const("return", term, f.args[2]) if term is not None else const("callfail", f.args[2])
+    d = V.pending(f).dest
+    return const(V.RETURN, term, d) if term is not None else const(V.CALLFAIL, d)
 
 
 def _compatible(scenario: Scenario, names) -> bool:

@@ -25,7 +25,8 @@ from typing import Callable, Optional
 from ..clf.context import LIN
 from ..clf.terms import Const, Root, const
 from ..errors import RoarError
-from ..roar.run import Narrator, Values, list_items, site_of
+from ..roar import vocabulary as V
+from ..roar.run import Narrator, Values, list_items, primitive_error, site_of
 from .activity import Activity, CallResult
 from .conform import TIMING_RULES, best_match
 from .robot import Robot
@@ -60,8 +61,8 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
     values = Values(model)
     narrator = Narrator(model)
     for _mode, f, _n in state.facts():
-        if type(f) is Root and isinstance(f.head, Const) and f.head.name == "rq":
-            narrator.label(f.args[0])
+        if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.RQ:
+            narrator.label(V.rq(f).request)
             narrator.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
     lines: list[str] = []
     calls: list[CallRecord] = []
@@ -94,13 +95,14 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
                 by_dest[d].t_end = robot.time
 
     def launch(f) -> None:
-        d = f.args[2]
+        p = V.pending(f)
+        d = p.dest
         if d in by_dest:
             return
-        fc = f.args[0].head.name
+        fc = p.fn.head.name
         owner, name = model.functions[fc]
         tys = model.fn_params.get(fc, [])
-        args = [values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(f.args[1]))]
+        args = [values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(p.args))]
         rec = CallRecord(len(calls) + 1, f"{owner}::{name}" if owner else name, fc, owner or "?", args, 0, robot.time)
         calls.append(rec)
         by_dest[d] = rec
@@ -121,14 +123,14 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
                 res = v if isinstance(v, CallResult) else CallResult(v, False, "returned", {})
         except RoarError:
             raise
-        except Exception as exc:
-            res = CallResult(None, True, f"raised {type(exc).__name__}: {exc}", {})
+        except Exception as exc:   # a bug of the binding: located, never a failure to retry
+            raise primitive_error(model, fc, prim, args, exc) from None
         answered[d] = res
         rec.result = res
         rec.t_end = robot.time
 
     def launch_pending(ctx) -> None:
-        bag = ctx.index.get(Const("pending"))
+        bag = ctx.index.get(Const(V.PENDING))
         for f in (list(bag.items) if bag else []):
             launch(f)
 
@@ -142,14 +144,14 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
         want = (list(rec.get("consumed", [])), list(rec.get("produced", [])))
         if rule.startswith("outcome_"):
             fc, oname = _split_outcome(rule, model)
-            bag = state.index.get(Const("pending"))
-            cands = [f for f in (list(bag.items) if bag else []) if f.args[0].head.name == fc]
+            bag = state.index.get(Const(V.PENDING))
+            cands = [f for f in (list(bag.items) if bag else []) if V.pending(f).fn.head.name == fc]
             if not cands:
                 return done(False, n - 1, f"diverges at step {n}: the counterexample answers {fc} with {oname}, "
                                           f"but the robot run has no such call under way")
-            cands.sort(key=lambda f: by_dest[f.args[2]].n)
+            cands.sort(key=lambda f: by_dest[V.pending(f).dest].n)
             f = cands[0]
-            d = f.args[2]
+            d = V.pending(f).dest
             advance(dest=d)
             crec = by_dest[d]
             if d not in answered:
@@ -214,7 +216,8 @@ def _answer(state, f, crec, res: CallResult, model, values):
         term = const("vunit")
     else:
         term = values.term(res.value, rty)
-    ans = const("return", term, f.args[2]) if term is not None else const("callfail", f.args[2])
+    d = V.pending(f).dest
+    ans = const(V.RETURN, term, d) if term is not None else const(V.CALLFAIL, d)
     new = state.copy()
     new.remove_fact(f, LIN)
     new.add_fact(ans, LIN)

@@ -581,6 +581,10 @@ def _read_scenario(top: _Table, text: str, filename: str) -> Scenario:
     dt = top.number("dt", 0.01, 0.0, MAX_DT, low_open=True)
     horizon = top.number("horizon", 120.0, 0.0, low_open=True)
     bounds = top.rect("bounds")
+    x0, y0, x1, y1 = bounds
+    if max(x1 - x0, y1 - y0) > MAX_EXTENT or max(map(abs, bounds)) > MAX_COORD:
+        raise top.error(f"'bounds' spans {x1 - x0:g} m by {y1 - y0:g} m: a world is at most {MAX_EXTENT:g} m on a side "
+                        f"(its occupancy grid has a cell every 0.1 m), within {MAX_COORD:g} m of the origin", "bounds")
     inside = _Inside(bounds)
 
     places: dict[str, Point] = {}
@@ -599,9 +603,16 @@ def _read_scenario(top: _Table, text: str, filename: str) -> Scenario:
         start, end = t.numbers("from", "[x, y]"), t.numbers("to", "[x, y]")
         if start == end:
             raise t.error(f"{t.what}: 'from' and 'to' are the same point", "to")
+        inside.check(t, "from", start, f"{t.what}: 'from'")
+        inside.check(t, "to", end, f"{t.what}: 'to'")
         walls.append(Wall(start, end, t.number("thickness", 0.1, 0.0, low_open=True)))
 
-    obstacles = tuple(_shape(t, "obstacle") for t in _checked(top.tables("obstacle"), ("box", "circle", "angle")))
+    obstacles = []
+    for t in _checked(top.tables("obstacle"), ("box", "circle", "angle")):
+        shape = _shape(t, "obstacle")
+        inside.check(t, shape.kind, (shape.x, shape.y), f"{t.what}")
+        obstacles.append(shape)
+    obstacles = tuple(obstacles)
 
     doors = []
     for t in top.tables("door"):
@@ -612,6 +623,8 @@ def _read_scenario(top: _Table, text: str, filename: str) -> Scenario:
         start, end = t.numbers("from", "[x, y]"), t.numbers("to", "[x, y]")
         if start == end:
             raise t.error(f"{t.what}: 'from' and 'to' are the same point", "to")
+        inside.check(t, "from", start, f"door '{door_name}': 'from'")
+        inside.check(t, "to", end, f"door '{door_name}': 'to'")
         doors.append(Door(door_name, start, end, t.number("thickness", 0.1, 0.0, low_open=True),
                           t.boolean("open", True), _schedule(t, horizon)))
 
@@ -628,7 +641,10 @@ def _read_scenario(top: _Table, text: str, filename: str) -> Scenario:
     patches = []
     for t in top.tables("patch"):
         t.check_keys(("area", "mu"))
-        patches.append(Patch(t.rect("area"), t.number("mu", None, 0.0)))
+        area = t.rect("area")
+        inside.check(t, "area", (area[0], area[1]), f"{t.what}: the area's corner")
+        inside.check(t, "area", (area[2], area[3]), f"{t.what}: the area's corner")
+        patches.append(Patch(area, t.number("mu", None, 0.0)))
 
     robot = _robot(top.table("robot", "[robot]"), inside)
     ptu = _ptu(top.table("ptu", "[ptu]"), inside)
@@ -640,6 +656,12 @@ def _read_scenario(top: _Table, text: str, filename: str) -> Scenario:
         objects=tuple(objects), patches=tuple(patches), robot=robot, ptu=ptu, faults=faults,
         path=None if filename.startswith("<") else filename,
         fingerprint=hashlib.sha256(text.encode("utf-8")).hexdigest())
+
+
+#: the largest world: its planning grid (a cell every 0.1 m) stays a few million cells
+MAX_EXTENT = 200.0
+#: the farthest a world's bounds may lie from the origin (floats lose centimetres beyond)
+MAX_COORD = 1.0e6
 
 
 class _Inside:

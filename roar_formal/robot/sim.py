@@ -32,10 +32,11 @@ from ..clf.forward import Run
 from ..clf.printer import show
 from ..clf.terms import Const, Root, const
 from ..errors import RoarError
+from ..roar import vocabulary as V
 from ..roar.compile import CompiledModel
 from ..roar.functional import Registry
 from ..roar.run import (Fault, Narrator, Resolver, RoarEvent, RunResult, Values, collect_result, list_items,
-                        site_of)
+                        primitive_error, site_of)
 from .activity import Activity, CallResult
 from .robot import Robot
 from .scenario import Scenario
@@ -68,8 +69,8 @@ class CallRecord:
     covering: list = field(default_factory=list)   # every declared outcome that covers it
 
     def as_json(self) -> dict:
-        from .activity import _jsonable
-        return {"n": self.n, "function": self.function, "agent": self.agent, "args": _jsonable(self.args),
+        from .activity import jsonable
+        return {"n": self.n, "function": self.function, "agent": self.agent, "args": jsonable(self.args),
                 "started": round(self.t_start, 4), "ended": None if self.t_end is None else round(self.t_end, 4),
                 "result": None if self.result is None else self.result.as_json(), "forced": self.forced,
                 "outcome": self.outcome, "covering": self.covering}
@@ -180,8 +181,8 @@ def poll_period(model: CompiledModel, step) -> Optional[float]:
     if site is None or site.kind != "wait":
         return None
     for _m, f in step.produced:
-        if type(f) is Root and isinstance(f.head, Const) and f.head.name == "ctl":
-            mode = f.args[1]
+        if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.CTL:
+            mode = V.ctl(f).mode
             if isinstance(mode.head, Const) and mode.head.name == "m_run":
                 return site.period_ms / 1000.0 if site.period_ms else DEFAULT_POLL
     return None
@@ -236,8 +237,8 @@ class _Sim:
         self._order = 0
         self.now_fc = {fc for fc, (owner, name) in model.functions.items() if owner is None and name == "now"}
         for _mode, f, _n in self.ctx.facts():
-            if type(f) is Root and isinstance(f.head, Const) and f.head.name == "rq":
-                self.narrator.label(f.args[0])
+            if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.RQ:
+                self.narrator.label(V.rq(f).request)
                 self.narrator.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
         self.runner = Run(prog.templates, self.ctx, seed=seed, prover=prog.prover(), on_step=self._on_step)
 
@@ -278,20 +279,21 @@ class _Sim:
 
     # ------------------------------------------------------------------ calls
     def _called(self, f, step: int) -> None:
-        fc = f.args[0].head.name
+        p = V.pending(f)
+        fc = p.fn.head.name
         owner, name = self.model.functions[fc]
         site = self.model.sites.get(site_of(self.steps.rule(step - 1)))
         agent = site.agent if site else (owner or "?")
         tys = self.model.fn_params.get(fc, [])
-        args = [self.values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(f.args[1]))]
+        args = [self.values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(p.args))]
         rec = CallRecord(len(self.calls) + 1, f"{owner}::{name}" if owner else name, fc, agent, args, step,
                          self.robot.time)
         self.calls.append(rec)
-        self.by_dest[f.args[2]] = rec
+        self.by_dest[p.dest] = rec
 
     def _launch(self, f) -> bool:
         """Start the call of pending fact ``f``; True if it was answered at once."""
-        rec = self.by_dest[f.args[2]]
+        rec = self.by_dest[V.pending(f).dest]
         fc = rec.fc
         forced = self.resolver.forced(fc)
         if forced is not None:
@@ -322,8 +324,8 @@ class _Sim:
                 res = CallResult(v, False, "returned", {})
         except RoarError:
             raise
-        except Exception as exc:  # the functional layer failed: a primitive failure
-            res = CallResult(None, True, f"raised {type(exc).__name__}: {exc}", {})
+        except Exception as exc:  # a bug of the binding: located, never a failure to retry
+            raise primitive_error(self.model, fc, prim, rec.args, exc) from None
         self._finish(f, rec, res)
         return True
 
@@ -336,17 +338,19 @@ class _Sim:
         self._answer(f, rec, result_term(self.model, self.values, rec.fc, res), {})
 
     def _answer(self, f, rec: CallRecord, term, writes: dict) -> None:
-        ans = const("return", term, f.args[2]) if term is not None else const("callfail", f.args[2])
+        d = V.pending(f).dest
+        ans = const(V.RETURN, term, d) if term is not None else const(V.CALLFAIL, d)
         eaten, made = [f], [ans]
         owner = self.model.functions[rec.fc][0]
         for var, value in writes.items():   # a forced outcome's declared writes
             agent, _, vname = var.rpartition("::")
             cell = f"v_{agent or owner}_{vname}"
-            bag = self.ctx.index.get(Const("contains"))
-            old = next((g for g in (bag.items if bag else ()) if g.args[0].head.name == cell), None)
+            bag = self.ctx.index.get(Const(V.CONTAINS))
+            old = next((g for g in (bag.items if bag else ()) if V.contains(g).cell.head.name == cell), None)
             if old is not None:
                 eaten.append(old)
-                made.append(const("contains", old.args[0], self.values.term(value, self.model.cell_types.get(cell))))
+                made.append(const(V.CONTAINS, V.contains(old).cell,
+                                  self.values.term(value, self.model.cell_types.get(cell))))
         step = self.runner.external(eaten, made, rule="functional_layer")
         i = self._record(step)
         rec.step_end = i
@@ -374,11 +378,11 @@ class _Sim:
                     break
                 continue
             bag = self.ctx.index.get(pending)
-            fresh = [f for f in (list(bag.items) if bag else []) if f.args[2] not in launched]
-            fresh.sort(key=lambda f: self.by_dest[f.args[2]].n)
+            fresh = [f for f in (list(bag.items) if bag else []) if V.pending(f).dest not in launched]
+            fresh.sort(key=lambda f: self.by_dest[V.pending(f).dest].n)
             answered = False
             for f in fresh:
-                launched.add(f.args[2])
+                launched.add(V.pending(f).dest)
                 answered = self._launch(f) or answered
             if answered:
                 continue

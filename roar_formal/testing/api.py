@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import atexit
 import hashlib
-import io
 import re
 import shutil
 import sys
@@ -36,11 +35,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping, Optional, Sequence, Union
 
 from ..errors import Pos, RoarError
+from ..lines import Lines
 from ..explore.search import Budget
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..clf.program import Program
-    from ..explore.check import JobResult
+    from ..verify.check import JobResult
     from ..explore.properties import Verdict
     from ..roar import ast as a
     from ..roar.compile import CompiledModel
@@ -57,7 +57,8 @@ FaultLike = Union[str, "Fault"]
 BudgetLike = Union[Budget, Mapping[str, Any], None]
 
 #: properties a job on a spec can check (docs/checking.md, "Jobs on a ROAR spec")
-ROAR_PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant")
+ROAR_PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant",
+                   "mission-completion", "mission-failure")
 #: properties a job on a .clf model can check
 CLF_PROPERTIES = ("deadlock", "livelock", "invariant")
 
@@ -79,8 +80,8 @@ def load(path: PathLike, *, functional: Optional[PathLike] = None) -> Union["Age
 def load_spec(path: PathLike, *, functional: Optional[PathLike] = None, hyper_compat: bool = False) -> "AgentSpec":
     """Parse and check an agent spec (static checks included); its functional-layer module is
     ``functional`` or found next to it as ``roar-verify run`` finds it."""
-    from ..roar.commands import functional_module
-    from ..roar.parser import load_spec as parse_spec
+    from ..roar.functional import functional_module
+    from ..roar.spec import load_spec as parse_spec
     p = Path(path)
     tree = parse_spec(p, hyper_compat=hyper_compat)
     module = functional_module(p, Path(functional) if functional is not None else None)
@@ -113,7 +114,7 @@ def as_budget(budget: BudgetLike) -> Budget:
 _SCRATCH: list[Path] = []
 
 
-def _scratch() -> Path:
+def scratch_folder() -> Path:
     if not _SCRATCH:
         d = Path(tempfile.mkdtemp(prefix="roar-formal-"))
         _SCRATCH.append(d)
@@ -125,7 +126,7 @@ def _scratch_path(text: str, name: str, suffix: str) -> Path:
     """Where a model given as text is written when a file is needed (named by its content)."""
     safe = re.sub(r"[^A-Za-z0-9_-]", "_", name) or "model"
     digest = hashlib.sha1(text.encode("utf-8")).hexdigest()[:12]
-    return _scratch() / digest / f"{safe}{suffix}"
+    return scratch_folder() / digest / f"{safe}{suffix}"
 
 
 def _written(path: Path, text: str) -> Path:
@@ -144,11 +145,6 @@ def _caller_pos() -> Pos:
     if f is None:
         return Pos("<python>", 1, 1)
     return Pos(f.f_code.co_filename, f.f_lineno, 1)
-
-
-def _console(buf: io.StringIO):
-    from ..console import make_console
-    return make_console(file=buf, width=100_000, color_system=None, force_terminal=False, soft_wrap=True)
 
 
 def _triple_quoted(text: str) -> str:
@@ -183,15 +179,15 @@ class AgentSpec:
     def from_text(cls, text: str, *, name: str = "spec", functional: Optional[PathLike] = None) -> "AgentSpec":
         """A spec in the single-file layout given as text, parsed and checked. Positions name a
         scratch file, written when a file is needed (the explorer reads one)."""
-        from ..roar.checks import check_spec
-        from ..roar.parser import load_spec as parse_spec
         from ..roar.parser import parse_roar
+        from ..roar.spec import checked_spec
+        from ..roar.spec import load_spec as parse_spec
         path = _scratch_path(text, name, ".roar")
         tree = parse_roar(text, str(path))
         if any(ag.imports for ag in tree.agents):   # imports are loaded from files: go through one
             tree = parse_spec(_written(path, text))
         else:
-            check_spec(tree)
+            checked_spec(tree)   # checked once; the compiler reuses it
         return cls(tree, path, functional=Path(functional) if functional is not None else None, text=text,
                    name=f"<{name}>")
 
@@ -215,7 +211,7 @@ class AgentSpec:
     def registry(self) -> Optional["Registry"]:
         """A fresh registry of the functional layer (its ``registry()`` is called anew: each run
         gets its own simulation), or None when the spec has no module."""
-        from ..roar.commands import load_registry
+        from ..roar.functional import load_registry
         return load_registry(self.functional)
 
     def compile(self, request: str, mode: str = "python") -> "CompiledModel":
@@ -257,7 +253,7 @@ class AgentSpec:
                   strict_faults: bool) -> "RunReport":
         from ..roar.compile import compile_spec
         from ..robot.binding import load_robot_binding
-        from ..robot.commands import split_faults
+        from ..robot.setup import split_faults
         from ..robot.scenario import load_scenario
         from ..robot.sim import simulate
         if self.text is not None and self.functional is None:
@@ -285,7 +281,7 @@ class AgentSpec:
                 budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None) -> "Exploration":
         """Explore every interleaving and every declared outcome of the functional layer, as a
         job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property."""
-        from ..explore.jobs import Job, PropertySpec
+        from ..verify.jobs import Job, PropertySpec
         props = _properties(properties, never, ROAR_PROPERTIES)
         spec_path = self._file()
         ps = PropertySpec(check=props, progress=list(progress), sequence_recipes=list(sequence_recipes))
@@ -311,7 +307,7 @@ class AgentSpec:
         primitives at whose calls it may be armed). ``quantise`` is ``"exact"``, a dict
         (position, heading, speed, clock, memory) or an ``Abstraction``; ``robot_never`` /
         ``robot_always`` are conditions on the robot state (``"contact"``) checked at every tick."""
-        from ..explore.jobs import Job, PropertySpec, RobotSetup
+        from ..verify.jobs import Job, PropertySpec, RobotSetup
         from ..robot.explore import Abstraction
         allowed = ROAR_PROPERTIES + ("robot-invariant",)
         props = _properties([p for p in properties if p != "robot-invariant"], never, allowed)
@@ -357,7 +353,7 @@ class AgentSpec:
         ``.lines()``)."""
         from ..roar.compile import compile_spec
         from ..robot.binding import load_robot_binding
-        from ..robot.commands import split_faults
+        from ..robot.setup import split_faults
         from ..robot.conform import conform
         from ..robot.scenario import load_scenario
         if runs < 1:
@@ -422,7 +418,7 @@ def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple)
 
 
 def _explore(job) -> "Exploration":
-    from ..explore.check import run_job
+    from ..verify.check import run_job
     return Exploration(run_job(job))
 
 
@@ -480,30 +476,28 @@ class RunReport:
     def format(self, verbose: bool = False) -> str:
         """The run as the command line prints it (the step table of ``trace.render``);
         ``verbose`` adds each event's CLF rule."""
-        from ..trace.render import event_rows, print_events
-        buf = io.StringIO()
-        console = _console(buf)
+        from ..trace.render import event_lines, event_rows
+        out = Lines()
         faults = f", faults {', '.join(self.faults)}" if self.faults else ""
         if self.robot is not None:
             res = self.robot
-            console.print(f"{self.spec}: request {self.request} on scenario {self.scenario.name}, "
-                          f"seed {self.seed}{faults}")
+            out.add(f"{self.spec}: request {self.request} on scenario {self.scenario.name}, seed {self.seed}{faults}")
             rules = [st.rule for st in res.run.steps.raw]
-            print_events(console, event_rows(res.events, res.times, res.poses, rules), verbose=verbose)
+            out.extend(event_lines(event_rows(res.events, res.times, res.poses, rules), verbose=verbose))
             x, y, th = res.robot.world.base.pose
-            console.print(f"request {res.outcome} at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF "
-                          f"steps ({res.end}); robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
+            out.add(f"request {res.outcome} at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF "
+                    f"steps ({res.end}); robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
         else:
-            console.print(f"{self.spec}: request {self.request}{faults}, seed {self.seed}")
+            out.add(f"{self.spec}: request {self.request}{faults}, seed {self.seed}")
             rules = [s[0] for s in self.result.steps]
-            print_events(console, event_rows(self.events, rules=rules), verbose=verbose)
+            out.extend(event_lines(event_rows(self.events, rules=rules), verbose=verbose))
             end = "quiescent" if self.quiescent else f"stopped after {self.max_steps} steps"
-            console.print(f"request {self.outcome} after {self.clf_steps} CLF steps ({end})")
+            out.add(f"request {self.outcome} after {self.clf_steps} CLF steps ({end})")
         for line in self.error_context:
-            console.print(f"  error context: {line}")
+            out.add(f"  error context: {line}")
         if self.unused_faults:
-            console.print(f"  faults that matched no call: {', '.join(self.unused_faults)}")
-        return buf.getvalue().rstrip("\n")
+            out.add(f"  faults that matched no call: {', '.join(self.unused_faults)}")
+        return out.text()
 
     def __str__(self) -> str:
         return self.format()
@@ -519,10 +513,10 @@ class RunReport:
 
     def save_trace(self, path: PathLike) -> Path:
         """Write the run as a JSON Lines trace (the format of ``roar-verify run --trace``)."""
-        from ..roar.commands import write_run_trace
+        from ..roar.traces import write_run_trace
         p = Path(path)
         if self.robot is not None:
-            from ..robot.commands import spec_files
+            from ..roar.sources import spec_files
             from ..robot.report import write_robot_trace
             write_robot_trace(p, self.robot, self.spec, self.request, str(self.scenario_path),
                               spec_files(self.result.model.spec))
@@ -555,14 +549,14 @@ class Counterexample:
     @property
     def steps(self) -> list[dict]:
         """The steps as trace records (rule, consumed, produced, group, event, loop)."""
-        from ..explore.check import counterexample_steps
+        from ..verify.check import counterexample_steps
         r = self.exploration.result
         return counterexample_steps(r.graph, self.verdict, r)
 
     @property
     def events(self) -> Optional[list[list["RoarEvent"]]]:
         """For a spec, the ROAR events of each step (None for a .clf model)."""
-        from ..explore.check import roar_events
+        from ..verify.check import roar_events
         return roar_events(self.exploration.result, self.verdict)
 
     @property
@@ -572,7 +566,7 @@ class Counterexample:
 
     def save(self, folder: PathLike) -> Path:
         """Write the replayable trace (``roar-verify replay``) into ``folder``; its path is printed with it."""
-        from ..explore.check import save_counterexample
+        from ..verify.check import save_counterexample
         r = self.exploration.result
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
@@ -584,13 +578,11 @@ class Counterexample:
 
     def format(self, verbose: bool = False) -> str:
         """The verdict line and the counterexample, as ``roar-verify check`` prints them."""
-        from ..explore.report import print_counterexample
-        buf = io.StringIO()
-        console = _console(buf)
+        from ..verify.report import counterexample_lines
         v = self.verdict
-        console.print(f"  {self.prop}: {v.status} — {v.message}")
-        print_counterexample(console, self.exploration.result, self.prop, verbose)
-        return buf.getvalue().rstrip("\n")
+        out = Lines().add(f"  {self.prop}: {v.status} — {v.message}")
+        out.extend(counterexample_lines(self.exploration.result, self.prop, verbose))
+        return out.text()
 
     def __str__(self) -> str:
         return self.format()
@@ -799,7 +791,7 @@ class ClfModel:
                 never: Sequence[str] = (), budget: BudgetLike = None, backend: str = "auto",
                 reduction: bool = False, name: Optional[str] = None) -> Exploration:
         """Explore every interleaving from a start state (docs/checking.md)."""
-        from ..explore.jobs import Job, PropertySpec
+        from ..verify.jobs import Job, PropertySpec
         props = _properties(properties, never, CLF_PROPERTIES)
         if fairness not in ("first-argument", "rule", "none"):
             raise RoarError(f"fairness must be 'first-argument', 'rule' or 'none', not {fairness!r}", _caller_pos())

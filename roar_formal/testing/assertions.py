@@ -22,7 +22,7 @@ from typing import Any, Iterator, Optional, Sequence, Union
 
 from ..errors import RoarError
 from ..explore.search import Budget
-from .api import AgentSpec, BudgetLike, ClfModel, Exploration, FaultLike, RunReport, _scratch, as_budget, load
+from .api import AgentSpec, BudgetLike, ClfModel, Exploration, FaultLike, RunReport, scratch_folder, as_budget, load
 
 __all__ = [
     "RoarAssertionError", "TestSettings", "DEFAULT_BUDGET", "current_settings", "using_settings",
@@ -58,7 +58,7 @@ class TestSettings:
     traces: Optional[Path] = None
 
     def traces_folder(self) -> Path:
-        folder = self.traces if self.traces is not None else _scratch() / "roar-traces"
+        folder = self.traces if self.traces is not None else scratch_folder() / "roar-traces"
         folder.mkdir(parents=True, exist_ok=True)
         return folder
 
@@ -73,7 +73,7 @@ def current_settings() -> TestSettings:
     s = _SETTINGS.get()
     if s is not None:
         return s
-    from ._context import PLUGIN
+    from .session import PLUGIN
     given = PLUGIN.get()
     if given is None:
         return TestSettings()

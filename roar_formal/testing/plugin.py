@@ -111,7 +111,7 @@ def _traces(config: pytest.Config) -> Path:
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
     """Run the test with its budget and trace folder as the assertion helpers' settings."""
-    from ._context import PLUGIN
+    from .session import PLUGIN
     token = PLUGIN.set((_budget_kwargs(item), lambda: _traces(item.config)))
     try:
         yield

@@ -62,7 +62,7 @@ class _Setup:
 
     def __init__(self, cls: type["RoarMachine"]):
         from ..clf.signature import ExecDirective
-        from ..explore.check import make_never
+        from ..verify.check import make_never
         from ..explore.system import Options
         from ..roar.explore import PROGRESS_RULES, RoarSystem, sequential_pairs
         spec = cls.spec
@@ -185,15 +185,16 @@ class RoarMachine(RuleBasedStateMachine):
     def value(self, var: str) -> object:
         """The current value of ``agent::var`` (numbers as int or Fraction)."""
         from ..clf.terms import Const
+        from ..roar import vocabulary as V
         from ..roar.run import value_of
         agent, _, name = var.partition("::")
         cell = f"v_{agent}_{name}"
         if cell not in self.model.cells:
             raise RoarError(f"no variable {var!r} in {self._s.spec.name}")
-        bag = self.state.index.get(Const("contains"))
-        for f in (bag.items if bag else ()):
-            if f.args[0].head.name == cell:
-                return value_of(f.args[1])
+        bag = self.state.index.get(Const(V.CONTAINS))
+        for c in map(V.contains, bag.items if bag else ()):
+            if c.cell.head.name == cell:
+                return value_of(c.value)
         raise RoarError(f"{var} holds no value in this state")
 
     def format_run(self) -> str:
@@ -208,11 +209,12 @@ class RoarMachine(RuleBasedStateMachine):
     def _new_narrator(self) -> Any:
         """The run's narrator, as for a counterexample (roar.explore.path_events): R0 is the request."""
         from ..clf.terms import Const
+        from ..roar import vocabulary as V
         from ..roar.run import Narrator
         nar = Narrator(self.model)
-        bag = self._s.start.index.get(Const("rq"))
-        for f in (bag.items if bag else ()):
-            nar.label(f.args[0])
+        bag = self._s.start.index.get(Const(V.RQ))
+        for q in map(V.rq, bag.items if bag else ()):
+            nar.label(q.request)
             nar.req_info["R0"] = (self.model.request_agent, self.model.csts[self.model.request_cst][1])
         return nar
 

@@ -16,7 +16,9 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Iterable, Optional
+from typing import Iterable
+
+from ..errors import RoarError
 
 ALGORITHM = "sha256"
 
@@ -46,28 +48,6 @@ def clf_fingerprint(model: Path) -> dict:
     return fingerprint([("model", Path(model).name, Path(model))])
 
 
-def spec_fingerprint(spec_path: Path, spec_ast, functional: Optional[Path]) -> dict:
-    """The files of a loaded spec (every file one of its nodes comes from) and its
-    functional-layer module, if any."""
-    from ..roar.ast import walk
-
-    spec_path = Path(spec_path)
-    base = spec_path if spec_path.is_dir() else spec_path.parent
-    files = sorted({Path(n.pos.file) for n in walk(spec_ast) if n.pos is not None and Path(n.pos.file).is_file()})
-    if spec_path.is_file() and spec_path not in files:
-        files.insert(0, spec_path)
-    entries = []
-    for f in files:
-        try:
-            name = str(f.resolve().relative_to(base.resolve()))
-        except ValueError:
-            name = f.name
-        entries.append(("spec", name, f))
-    if functional is not None:
-        entries.append(("functional", Path(functional).name, Path(functional)))
-    return fingerprint(entries)
-
-
 def differences(recorded: dict, given: dict) -> list[str]:
     """What differs between two fingerprints, file by file, for a message."""
     rec = recorded.get("files") if isinstance(recorded.get("files"), dict) else {}
@@ -86,3 +66,30 @@ def differences(recorded: dict, given: dict) -> list[str]:
         if old:
             out.append(f"recorded {role} files missing or changed here: {', '.join(json.dumps(x) for x in old)}")
     return out
+
+
+def check_fingerprint(path, header: dict, given: dict, force: bool, notes: list[str]) -> None:
+    """Refuse (unless ``force``) a trace whose recorded fingerprint is not ``given``'s; note
+    in ``notes`` what could not be confirmed or was overridden."""
+    recorded = header.get("fingerprint")
+    if not isinstance(recorded, dict) or not isinstance(recorded.get(ALGORITHM), str):
+        notes.append("the trace records no fingerprint of its model's sources: it cannot be confirmed that "
+                     "--model is the model it was recorded on")
+        return
+    if recorded[ALGORITHM] == given[ALGORITHM]:
+        return
+    what = differences(recorded, given) or ["the files differ"]
+    rec_fn = [k.split(":", 1)[1] for k in (recorded.get("files") or {}) if str(k).startswith("functional:")]
+    if rec_fn and not any(k.startswith("functional:") for k in given["files"]):
+        what.append(f"the trace was recorded with the functional-layer module {shown(rec_fn[0])}: if it is one "
+                    "you trust, name it with --functional")
+    if not force:
+        raise RoarError(f"{path}: the model given with --model is not the one the trace was recorded on "
+                        f"(fingerprint {given[ALGORITHM][:12]}, recorded {shown(recorded[ALGORITHM][:12])})", None,
+                        what + ["pass --force to replay it on this model anyway"])
+    notes.append("replaying on a model other than the recorded one (--force): " + "; ".join(what))
+
+
+def shown(value) -> str:
+    """A value read from a trace, quoted for a message (control characters escaped)."""
+    return json.dumps(value, ensure_ascii=True) if isinstance(value, str) else json.dumps(str(value))

@@ -2,9 +2,9 @@
 
 A row is one ROAR event: the CLF step it comes from, the simulated time
 when there is one, the agent, the event, and the robot's pose when the run
-had a robot. Input-derived text is printed with rich markup and emoji
-substitution off, so nothing a spec or trace contains can turn into a style
-or a picture.
+had a robot. The table is a :class:`~roar_formal.lines.Lines` document:
+input-derived text is never read as markup, so nothing a spec or trace
+contains can turn into a style or a picture.
 """
 
 from __future__ import annotations
@@ -12,7 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Iterable, Optional, Sequence
 
-__all__ = ["Row", "event_rows", "print_events", "KIND_STYLE"]
+from ..lines import Lines
+
+__all__ = ["Row", "event_rows", "event_lines", "KIND_STYLE"]
 
 KIND_STYLE = {
     "sent": "cyan", "state": "bold", "tasks": "magenta", "recipe": "magenta", "recipe-end": "magenta",
@@ -58,23 +60,23 @@ def event_rows(events: Iterable, times: Optional[Sequence[float]] = None, poses:
     return rows
 
 
-def print_events(console, rows: Iterable[Row], verbose: bool = False, poses: bool = True) -> None:
-    """Print rows on a rich console: styled by kind, input text never read as markup."""
-    from rich.text import Text
+def event_lines(rows: Iterable[Row], verbose: bool = False, poses: bool = True) -> Lines:
+    """The step table as styled lines (styled by kind; printed by the CLI, joined by the library)."""
+    import math
 
+    out = Lines()
     last_pose = None
     for row in rows:
-        line = Text()
-        line.append(f"{row.step:>5} ", style="dim")
+        parts: list = [(f"{row.step:>5} ", "dim")]
         if row.time is not None:
-            line.append(f"{row.time:8.2f}s ", style="dim")
-        line.append(f"{row.agent:<12} ")
-        line.append(row.text, style=KIND_STYLE.get(row.kind, ""))
+            parts.append((f"{row.time:8.2f}s ", "dim"))
+        parts.append((f"{row.agent:<12} ", ""))
+        parts.append((row.text, KIND_STYLE.get(row.kind, "")))
         if poses and row.pose is not None and row.pose != last_pose:
             x, y, th = row.pose[:3]
-            import math
-            line.append(f"   @ ({x:.2f}, {y:.2f}, {math.degrees(th):.0f}°)", style="dim")
+            parts.append((f"   @ ({x:.2f}, {y:.2f}, {math.degrees(th):.0f}°)", "dim"))
             last_pose = row.pose
         if verbose and row.rule:
-            line.append(f"  ({row.rule})", style="dim")
-        console.print(line, soft_wrap=True)
+            parts.append((f"  ({row.rule})", "dim"))
+        out.add(*parts)
+    return out

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from roar_formal.cli import main
-from roar_formal.clf.commands import celf_category
+from roar_formal.cli.clf import celf_category
 from roar_formal.clf.query import run_file, with_big_stack
 from roar_formal.errors import RoarError, UnsupportedError
 

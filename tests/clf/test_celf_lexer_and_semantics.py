@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from roar_formal.clf.commands import fast_args
+from roar_formal.cli.clf import fast_args
 from roar_formal.clf.parser import parse_program, tokenize
 from roar_formal.clf.program import Program
 from roar_formal.clf.query import run_directives

@@ -21,7 +21,7 @@ import pytest
 
 from roar_formal.clf import backward, state
 from roar_formal.clf.context import Context
-from roar_formal.clf.forward import _multiset_key, enabled_steps, find_matches
+from roar_formal.clf.forward import multiset_key, enabled_steps, find_matches
 from roar_formal.clf.program import Program
 from roar_formal.clf.query import with_big_stack
 from roar_formal.clf.rules import AFF, LIN, PERS
@@ -140,7 +140,7 @@ def reference_steps(templates, ctx: Context, prover) -> list:
             continue
         b = [None] * t.nslots
         for consumed in find_matches(ctx, t, b, -1, prover, all_modes=True):
-            key = (id(t), tuple(b), _multiset_key(consumed))
+            key = (id(t), tuple(b), multiset_key(consumed))
             if key not in seen:
                 seen.add(key)
                 out.append((t, None, tuple(b), tuple(consumed)))

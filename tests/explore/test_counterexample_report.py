@@ -11,10 +11,10 @@ import pytest
 
 from roar_formal.cli import main
 from roar_formal.errors import RoarError
-from roar_formal.explore.check import run_job
-from roar_formal.explore.jobs import load_job
-from roar_formal.explore.pictures import render_chart, sequence_chart, state_graph_dot
-from roar_formal.explore.report import counterexample_report
+from roar_formal.verify.check import run_job
+from roar_formal.verify.jobs import load_job
+from roar_formal.verify.pictures import render_chart, sequence_chart, state_graph_dot
+from roar_formal.verify.report import counterexample_report
 
 ROOT = Path(__file__).resolve().parents[2]
 _RESULTS: dict = {}

@@ -16,8 +16,8 @@ from roar_formal.clf.printer import show
 from roar_formal.clf.program import Program
 from roar_formal.clf.state import canonical_key
 from roar_formal.errors import RoarError
-from roar_formal.explore.check import run_job
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.check import run_job
+from roar_formal.verify.jobs import load_job
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -9,9 +9,9 @@ from hypothesis import given, settings, strategies as st
 
 from roar_formal.cli import main
 from roar_formal.clf.program import Program
-from roar_formal.explore.check import run_job
+from roar_formal.verify.check import run_job
 from roar_formal.explore.ground import GroundExplorer, GroundModel
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.jobs import load_job
 from roar_formal.explore.properties import check_deadlock, check_livelock
 from roar_formal.explore.search import Budget, Explorer
 from roar_formal.explore.system import ClfSystem, Options
@@ -162,6 +162,8 @@ deadlock = "holds"
     ('model = "m.clf"\nbackend = "fast"\n[expect]\ndeadlock = "holds"\n', ":2:1", "'backend' must be one of"),
     ('model = "m.clf\n', ":1:", "invalid TOML"),
     ('model = "m.clf"\n', ":1:1", "the job checks nothing"),
+    # found by fuzzing: a NUL in a path crashed the path library
+    ('name = "x"\nspec = "a\\u0000b.roar"\nrequest = "a::b == true"\n', ":2:1", "holds a NUL character"),
 ])
 def test_malformed_job_files_are_located_errors(tmp_path, capsys, text, where, msg):
     job = write(tmp_path, "bad.toml", text)

@@ -10,12 +10,12 @@ from hypothesis import given, settings, strategies as st
 
 from roar_formal.clf.program import Program
 from roar_formal.clf.query import with_big_stack
-from roar_formal.explore.check import run_job, save_counterexample
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.check import run_job, save_counterexample
+from roar_formal.verify.jobs import load_job
 from roar_formal.explore.properties import check_deadlock
 from roar_formal.explore.search import Budget, Explorer
 from roar_formal.explore.system import ClfSystem, Options
-from roar_formal.trace.replay import replay
+from roar_formal.verify.replay import replay
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -274,7 +274,7 @@ def _violating_keys(ex: Explorer, g, never) -> set:
 def test_random_programs_keep_their_invariant_verdicts(src, pattern):
     """An invariant's forbidden pattern stays in every stubborn set: a state matching it is
     reachable with reduction exactly when it is without (plain search as the oracle)."""
-    from roar_formal.explore.check import make_never
+    from roar_formal.verify.check import make_never
 
     text = " * ".join(f"{f} {a}" for f, a in pattern)
     never = make_never(src, "<random>", [(text, None)])

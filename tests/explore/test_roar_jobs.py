@@ -26,13 +26,13 @@ from roar_formal.cli import main
 from roar_formal.clf.query import with_big_stack
 from roar_formal.clf.state import canonical_key
 from roar_formal.errors import RoarError
-from roar_formal.explore.check import roar_events, run_job, save_counterexample
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.check import roar_events, run_job, save_counterexample
+from roar_formal.verify.jobs import load_job
 from roar_formal.explore.search import Budget, Explorer
 from roar_formal.explore.system import Options
 from roar_formal.roar.explore import PROGRESS_RULES, RoarSystem, roar_final, sequential_pairs
 from roar_formal.trace.format import read_trace
-from roar_formal.trace.replay import replay
+from roar_formal.verify.replay import replay
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKER = ROOT / "checker"

@@ -23,12 +23,12 @@ import pytest
 from roar_formal.clf.query import with_big_stack
 from roar_formal.clf.state import canonical_key
 from roar_formal.errors import RoarError
-from roar_formal.explore.check import run_job
-from roar_formal.explore.jobs import load_job, load_properties
-from roar_formal.roar.commands import functional_module, load_registry
+from roar_formal.verify.check import run_job
+from roar_formal.verify.jobs import load_job, load_properties
+from roar_formal.roar.functional import functional_module, load_registry
 from roar_formal.roar.compile import compile_spec
 from roar_formal.roar.explore import RoarSystem
-from roar_formal.roar.parser import load_spec
+from roar_formal.roar.spec import load_spec
 from roar_formal.roar.props import parse_formula, view_of
 from roar_formal.roar.report import decode_state
 
@@ -415,7 +415,7 @@ def test_mission_completion_agrees_with_the_oracle(tmp_path, which, status, shap
 
 
 def test_the_camera_retry_job_reports_a_lasso_in_spec_terms():
-    from roar_formal.explore.report import counterexample_report
+    from roar_formal.verify.report import counterexample_report
     res = run_job(load_job(ROOT / "checker" / "camera_retry.toml"))
     assert res.ok
     v = res.verdicts["mission-completion"]
@@ -633,7 +633,7 @@ def test_event_progress_agrees_with_the_oracle(tmp_path, which, progress, fn):
 
 
 def test_robot_backed_jobs_decide_the_spec_properties_and_a_horizon_is_no_end(tmp_path):
-    """robot/check.py's decide: the same properties on (CLF state, robot state) pairs; a state cut at
+    """verify/robot.py's decide: the same properties on (CLF state, robot state) pairs; a state cut at
     the scenario's horizon has no successor but is not the end of a run."""
     data = ROOT / "tests" / "robot" / "data" / "explore"
     props = tmp_path / "p.toml"

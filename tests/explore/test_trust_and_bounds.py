@@ -18,11 +18,11 @@ import pytest
 from roar_formal.cli import main
 from roar_formal.clf.query import with_big_stack
 from roar_formal.errors import RoarError
-from roar_formal.explore.check import run_job, save_counterexample
-from roar_formal.explore.jobs import MIN_MEMORY_MB, load_job
+from roar_formal.verify.check import run_job, save_counterexample
+from roar_formal.verify.jobs import MIN_MEMORY_MB, load_job
 from roar_formal.explore.search import MemoryWatch, current_rss_mb, rss_mb
 from roar_formal.trace.format import read_trace, remove_stale_temporaries, write_atomic
-from roar_formal.trace.replay import replay
+from roar_formal.verify.replay import replay
 
 ROOT = Path(__file__).resolve().parents[2]
 DL = ROOT / "models" / "philosophers" / "dl.clf"

@@ -13,8 +13,9 @@ from roar_formal.errors import RoarError, SyntaxError_, TypeError_
 from roar_formal.roar.checks import (CheckError, SpecCheckError, check_request, check_spec, request_errors,
                                      spec_errors)
 from roar_formal.roar import ast as a
-from roar_formal.roar.parser import load_spec, parse_constraint, parse_roar
-from roar_formal.roar.pretty import format_spec
+from roar_formal.roar.spec import load_spec
+from roar_formal.roar.parser import parse_constraint, parse_roar
+from roar_formal.roar.pretty import format_expr, format_spec
 
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = ROOT / "models"
@@ -44,7 +45,15 @@ def agent(context: str = "{ } { } { }", export: str = "", body: str = "", pre: s
 def test_models_pass_the_checks(model):
     spec = load_spec(MODELS / model)
     assert spec_errors(spec) == []
-    assert check_spec(spec) is spec
+    checked = check_spec(spec)
+    assert checked.spec is spec
+    # what the compiler consumes: every variable typed, and every expression of a recipe
+    assert set(checked.var_types) == {(ag.name, v.name) for ag in spec.agents for v in ag.vars}
+    # (the compiler asks the types of operators' operands and of a field's base)
+    operands = [x for n in a.walk(spec) if isinstance(n, (a.Binary, a.Field))
+                for x in ((n.left, n.right) if isinstance(n, a.Binary) else (n.base,))]
+    assert operands and [format_expr(e) for e in operands if id(e) not in checked.typed] == []
+    assert all(checked.type_of(e) == "bool" for ag in spec.agents for t in ag.tasks for e in t.post)
 
 
 def test_demo_loco_single_file_passes():
@@ -333,7 +342,7 @@ def test_malformed(entry):
 # -- robustness: any well-formed spec gets located CheckErrors, never a crash -------------------
 
 try:  # the expression and statement strategies of the parser tests
-    from .test_spec_parser import EXPRS, STMTS
+    from tests.roar.test_spec_parser import EXPRS, STMTS
 except ImportError:  # pragma: no cover - tests run as top-level modules
     from test_spec_parser import EXPRS, STMTS
 

@@ -25,9 +25,10 @@ from roar_formal.clf.program import Program
 from roar_formal.errors import RoarError, UnsupportedError
 from roar_formal.roar import ast as a
 from roar_formal.roar.checks import check_request
-from roar_formal.roar.commands import functional_module, load_registry
+from roar_formal.roar.functional import functional_module, load_registry
 from roar_formal.roar.compile import compile_spec
-from roar_formal.roar.parser import load_spec, parse_constraint
+from roar_formal.roar.spec import load_spec
+from roar_formal.roar.parser import parse_constraint
 from roar_formal.roar.run import run_model
 
 HERE = Path(__file__).resolve().parent
@@ -353,3 +354,22 @@ def test_decimals_round_trip_through_a_where_clause(double_spec, text):
     assert type(res.final["a::x"]) is (int if want.denominator == 1 else Fraction)
     writes = [e.text for e in res.events if e.kind == "write"]   # a write of an unchanged value is no event
     assert writes == ([f"a::goal = {_shown(want, text)}", f"a::x = {_shown(want, text)}"] if want != 0 else [])
+
+
+@settings(max_examples=25, deadline=None)
+@given(text=st.text(st.sampled_from(['a', ' ', '"', '\\', '\n', '\t', '\r', 'é', '%', '}', '.']), max_size=12))
+def test_any_string_of_the_spec_language_survives_compilation(tmp_path_factory, text):
+    """A string value with escapes (newline, tab, quote, backslash) compiles to a CLF literal the
+    engine reads back, and the run ends with exactly that value (it once broke the compiled model
+    with "unterminated string literal")."""
+    from roar_formal.roar.pretty import string_literal
+    spec = ("a = ability {\n  context = { { bool done; } { string msg = \"x\"; } { } }\n"
+            "  export = { { } { } { } }\n"
+            "  tasks = { say = task { pre = { } post = { {done == true} }\n"
+            f"    recipes = {{ r = recipe {{ body = {{ set msg {string_literal(text)}; set done true; }} }} }} }} }}\n}}\n")
+    path = tmp_path_factory.mktemp("str") / "s.roar"
+    path.write_text(spec, encoding="utf-8")
+    model = compile_spec(load_spec(path), "a::done == true", functional="python")
+    res = run_model(model, seed=0)
+    assert res.outcome == "success"
+    assert res.final["a::msg"] == text

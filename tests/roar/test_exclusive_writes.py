@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from roar_formal.clf.terms import Const, Root
-from roar_formal.explore.check import run_job
-from roar_formal.explore.jobs import job_for_model
+from roar_formal.verify.check import run_job
+from roar_formal.verify.jobs import job_for_model
 
 ROOT = Path(__file__).resolve().parents[2]
 

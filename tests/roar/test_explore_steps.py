@@ -9,13 +9,13 @@ from __future__ import annotations
 from collections import deque
 from pathlib import Path
 
-from roar_formal.clf.forward import _multiset_key, enabled_steps, find_matches
+from roar_formal.clf.forward import multiset_key, enabled_steps, find_matches
 from roar_formal.clf.query import with_big_stack
 from roar_formal.clf.signature import ExecDirective
 from roar_formal.clf.state import canonical_key
-from roar_formal.roar.commands import functional_module, load_registry
+from roar_formal.roar.functional import functional_module, load_registry
 from roar_formal.roar.compile import compile_spec
-from roar_formal.roar.parser import load_spec
+from roar_formal.roar.spec import load_spec
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 
@@ -30,7 +30,7 @@ def _reference_steps(program, ctx) -> list:
             continue
         b = [None] * t.nslots
         for consumed in find_matches(ctx, t, b, -1, prover, all_modes=True):
-            key = (id(t), tuple(b), _multiset_key(consumed))
+            key = (id(t), tuple(b), multiset_key(consumed))
             if key not in seen:
                 seen.add(key)
                 out.append((t.name, tuple(b), tuple(consumed)))

@@ -8,7 +8,8 @@ import pytest
 
 from roar_formal.errors import RoarError
 from roar_formal.roar.functional import (DEFAULT_OUTCOMES, Binding, BindingError, Outcome, Primitive, Registry)
-from roar_formal.roar.parser import load_spec, parse_roar
+from roar_formal.roar.spec import load_spec
+from roar_formal.roar.parser import parse_roar
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 

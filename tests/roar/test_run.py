@@ -19,9 +19,9 @@ import pytest
 from roar_formal.clf.printer import show
 from roar_formal.clf.terms import const
 from roar_formal.errors import RoarError
-from roar_formal.roar.commands import functional_module, load_registry
+from roar_formal.roar.functional import functional_module, load_registry
 from roar_formal.roar.compile import compile_spec
-from roar_formal.roar.parser import load_spec
+from roar_formal.roar.spec import load_spec
 from roar_formal.roar.run import parse_fault, run_model
 
 MODELS = Path(__file__).resolve().parents[2] / "models"

@@ -18,9 +18,9 @@ import pytest
 
 from roar_formal.cli import main
 from roar_formal.clf.program import Program
-from roar_formal.roar.commands import functional_module, load_registry
+from roar_formal.roar.functional import functional_module, load_registry
 from roar_formal.roar.compile import compile_spec
-from roar_formal.roar.parser import load_spec
+from roar_formal.roar.spec import load_spec
 from roar_formal.roar.run import parse_fault, run_model
 from roar_formal.trace.format import read_trace
 

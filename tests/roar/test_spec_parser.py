@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 from roar_formal.errors import RoarError, SyntaxError_
 from roar_formal.roar import ast as a
-from roar_formal.roar.parser import (hyper_compat_warnings, load_spec, parse_constraint, parse_expr,
-                                     parse_recipes, parse_roar, parse_task)
+from roar_formal.roar.parser import hyper_compat_warnings, parse_constraint, parse_expr, parse_recipes, parse_roar, parse_task
+from roar_formal.roar.spec import load_spec
 from roar_formal.roar.pretty import format_expr, format_spec, format_stmt, hyper_files
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -561,3 +561,15 @@ def test_garbage_wrapped_in_an_agent():
         with pytest.raises(SyntaxError_) as info:
             parse_roar(text)
         assert re.match(r"unexpected|'", info.value.message), info.value.message
+
+
+def test_a_number_too_long_to_read_is_a_located_error(tmp_path):
+    """Found by fuzzing: a 5,000-digit literal crashed the int conversion."""
+    from roar_formal.roar.parser import parse_roar
+    src = (Path(__file__).resolve().parents[2] / "models" / "faulty" / "ordered_pick.roar").read_text()
+    i = src.index("set done true")
+    bad = src[:i] + "set done " + "9" * 5000 + src[i + len("set done true"):]
+    line = src[:i].count("\n") + 1
+    with pytest.raises(SyntaxError_) as info:
+        parse_roar(bad, "p.roar")
+    assert info.value.pos.line == line and "a number of 5,000 characters" in info.value.message

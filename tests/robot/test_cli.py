@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from roar_formal.robot.commands import prepare
+from roar_formal.robot.setup import prepare
 from roar_formal.robot.sim import simulate
 from roar_formal.trace.format import read_trace
 
@@ -139,3 +139,27 @@ def test_conform_with_no_primitive_call_checked_nothing_and_says_so(cli, capsys)
     code, out, err = cli(capsys, "conform", MODELS / "pick_place.roar", "-s", SCEN / "gripper.toml",
                          "-r", "gripper::holding == false", "--runs", "1", "--no-random-faults")
     assert code == 1 and "nothing checked: no run called a primitive" in out
+
+
+def test_a_binding_that_raises_is_a_located_error_on_the_robot(cli, capsys, tmp_path):
+    """As in `run`: an exception in a robot primitive is a bug of the binding, reported at the
+    call with the primitive's name, never a failure the recipe retries."""
+    import shutil
+    spec = tmp_path / "door_nav.roar"
+    shutil.copy(DOOR, spec)
+    (tmp_path / "door_nav.py").write_text(
+        "import importlib.util\n"
+        f"_s = importlib.util.spec_from_file_location('door_nav_base', {str(MODELS / 'door_nav.py')!r})\n"
+        "_m = importlib.util.module_from_spec(_s)\n_s.loader.exec_module(_m)\n"
+        "registry = _m.registry\n"
+        "def robot_registry():\n"
+        "    reg = _m.robot_registry()\n"
+        "    def broken(gx, gy):\n"
+        "        raise RuntimeError('planner crashed')\n"
+        "    reg.register('compute_path', broken, outcomes=_m.OUTCOMES['compute_path'], replace=True)\n"
+        "    return reg\n")
+    code, out, err = cli(capsys, "simulate", spec, "-s", SCEN / "door.toml", "-r", DOOR_REQ)
+    assert code == 2, out
+    # door_nav.roar:33:20 is the call `compute_path(gx, gy)` in the planner's recipe
+    assert f"error: {spec}:33:20: primitive 'planner::compute_path' raised RuntimeError: planner crashed" in err
+    assert "called as compute_path(9, 3)" in err and "Traceback" not in err

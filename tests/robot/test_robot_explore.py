@@ -1,4 +1,4 @@
-"""Robot-backed exploration: the explorer over (CLF state, robot state) pairs (robot/explore.py, robot/check.py).
+"""Robot-backed exploration: the explorer over (CLF state, robot state) pairs (robot/explore.py, verify/robot.py).
 
 Oracles: a plain enumerator of every path of a small spec (a fresh robot per path, the events
 replayed from the start: no tree, no snapshot); a straight-line robot driven through a
@@ -18,8 +18,8 @@ import pytest
 from roar_formal.clf.query import with_big_stack
 from roar_formal.clf.state import canonical_key
 from roar_formal.errors import RoarError
-from roar_formal.explore.check import run_job, save_counterexample
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.check import run_job, save_counterexample
+from roar_formal.verify.jobs import load_job
 from roar_formal.robot.explore import Abstraction, robot_key
 from roar_formal.trace.format import read_trace
 
@@ -87,7 +87,7 @@ def test_door_has_the_paused_then_resumed_path_to_the_goal(door):
 def test_door_never_reopening_livelock_replays_on_the_robot(tmp_path):
     """With the door staying closed the planner retries forever in front of the door: a fair
     livelock whose counterexample a straight robot run realises, ending at the same pose."""
-    from roar_formal.robot.commands import prepare
+    from roar_formal.robot.setup import prepare
     from roar_formal.robot.onrobot import replay_robot_path
     res = run_job(_job(STUCK))
     v = res.verdicts["livelock"]

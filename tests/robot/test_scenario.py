@@ -10,6 +10,8 @@ import pytest
 from roar_formal.errors import RoarError
 from roar_formal.robot.scenario import FAULT_KINDS, load_scenario, parse_scenario
 
+ROOT = Path(__file__).resolve().parents[2]
+
 SCENARIOS = Path(__file__).resolve().parents[2] / "models" / "scenarios"
 HEAD = 'name = "t"\nbounds = [0, 0, 10, 5]\n'
 
@@ -227,3 +229,21 @@ def test_unknown_names_in_lookups():
         s.place("gaol")
     with pytest.raises(RoarError, match="no door 'd2'"):
         s.door("d2")
+
+
+@pytest.mark.parametrize("old,new,msg", [
+    ("to = [0.0, 0.0]", "to = [18446744073709551615, 0.0]",
+     "'to' at (1.84467e+19, 0) lies outside the bounds [0, 0, 12, 6]"),
+    ("bounds = [0.0, 0.0, 12.0, 6.0]", "bounds = [0.0, 0.0, 18446744073709551615, 6.0]",
+     "a world is at most 200 m on a side"),
+    ("box = [4.0, 1.0, 1.2, 0.8]", "box = [40.0, 1.0, 1.2, 0.8]", "lies outside the bounds"),
+])
+def test_a_world_too_large_or_a_wall_outside_it_is_a_located_error(tmp_path, old, new, msg):
+    """Found by fuzzing: a wall 1.8e19 m long made `simulate` hang, huge bounds crashed the grid."""
+    src = (ROOT / "models" / "scenarios" / "lidar_dropout.toml").read_text()
+    assert old in src
+    path = tmp_path / "s.toml"
+    path.write_text(src.replace(old, new, 1))
+    with pytest.raises(RoarError) as info:
+        load_scenario(path)
+    assert msg in info.value.message and info.value.pos.file == str(path) and info.value.pos.line > 1

@@ -19,7 +19,7 @@ import pytest
 from roar_formal.clf.context import LIN
 from roar_formal.clf.printer import show
 from roar_formal.clf.terms import Root
-from roar_formal.robot.commands import prepare
+from roar_formal.robot.setup import prepare
 from roar_formal.robot.conform import replay_on_model
 from roar_formal.robot.onrobot import replay_on_robot
 from roar_formal.robot.report import step_records, write_robot_trace
@@ -332,8 +332,8 @@ def test_a_robot_step_the_model_does_not_allow_is_rejected_with_both_sides(tmp_p
 
 
 def test_the_conflict_livelock_happens_on_the_robot_only_with_the_cable(tmp_path):
-    from roar_formal.explore.check import run_job, save_counterexample
-    from roar_formal.explore.jobs import load_job
+    from roar_formal.verify.check import run_job, save_counterexample
+    from roar_formal.verify.jobs import load_job
 
     res = run_job(load_job(ROOT / "checker" / "conflict.toml"))
     assert res.verdicts["livelock"].status == "violated"

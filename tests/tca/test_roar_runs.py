@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from roar_formal.explore.check import run_job, save_counterexample
-from roar_formal.explore.jobs import load_job
+from roar_formal.verify.check import run_job, save_counterexample
+from roar_formal.verify.jobs import load_job
 from roar_formal.roar.explore import path_events
 from roar_formal.tca.check import check_events, check_trace
 from roar_formal.tca.roar_runs import task_tree_events
@@ -144,3 +144,23 @@ def test_the_monitor_and_tca_check_agree_on_every_path(name, data):
     for v in report.violations:
         if v.rule != "seq_ach":
             assert "d_seq_ach" in v.rule and name == "ordered_pick", v.explanation
+
+
+def test_run_writes_its_task_tree_as_tca_check_reads_it(cli, capsys, tmp_path):
+    """`run --dot` draws the task tree tca-check checks: the same messages, kinds and parents,
+    and the sequential-achievement constraint of `make A; make B` as a dashed edge."""
+    import re
+    spec = ROOT / "models" / "faulty" / "ordered_pick_fixed.roar"
+    fn = ROOT / "models" / "faulty" / "reliable_tools.py"
+    code = cli(capsys, "run", spec, "-r", "cell::done == true", "--functional", fn,
+               "--trace", tmp_path / "t.jsonl", "--dot", tmp_path / "tree.dot")[0]
+    assert code == 0
+    dot = (tmp_path / "tree.dot").read_text()
+    nodes = dict(re.findall(r'^  "(\w+)" \[shape=(\w+),', dot, re.M))
+    edges = set(re.findall(r'^  "(\w+)" -> "(\w+)";$', dot, re.M))
+    tree = check_trace(tmp_path / "t.jsonl").tree
+    assert set(nodes) == set(tree.messages)
+    assert {m: {"box": "goal", "ellipse": "command"}[s] for m, s in nodes.items()} == \
+           {m: msg.kind for m, msg in tree.messages.items()}
+    assert edges == {(m.parent, m.id) for m in tree.messages.values() if m.parent is not None}
+    assert re.search(r'^  "R1" -> "R3" \[style=dashed.*label="SeqAch"\];$', dot, re.M)

@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from roar_formal.errors import RoarError
 from roar_formal.tca.check import MAX_CORES, check_trace
-from roar_formal.tca.commands import MAX_SIZE, register
+from roar_formal.cli.tca import MAX_SIZE, register
 from roar_formal.tca.difference import Atom, DifferenceSystem, NotDifference, ZERO, atoms
 from roar_formal.tca.model import load_model
 from roar_formal.tca.trace_events import parse_events

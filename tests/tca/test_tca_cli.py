@@ -9,7 +9,7 @@ import typer
 from typer.testing import CliRunner
 
 from roar_formal.errors import RoarError
-from roar_formal.tca.commands import register
+from roar_formal.cli.tca import register
 
 TRACES = Path(__file__).parent / "traces"
 AMBLER = Path(__file__).resolve().parents[2] / "models" / "ambler" / "ambler.toml"

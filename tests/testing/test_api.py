@@ -179,3 +179,17 @@ def test_a_run_on_the_reference_robot(models):
     text = run.format()
     assert text.splitlines()[0].endswith("on scenario door, seed 0")
     assert "compute_path(9, 3)" in text and "robot at (" in text
+
+
+def test_mission_properties_from_the_api_agree_with_the_checker_job(models, root):
+    """mission-completion and mission-failure (the spec defaults of a job) through the API:
+    the verdicts and state count of checker/camera_retry.toml."""
+    from roar_formal.verify.check import run_job
+    from roar_formal.verify.jobs import load_job
+    job = run_job(load_job(root / "checker" / "camera_retry.toml"))
+    res = load_spec(models / "faulty" / "camera_retry.roar").explore(
+        "camera::taken == true", ["deadlock", "mission-completion", "mission-failure"])
+    for p in ("deadlock", "mission-completion", "mission-failure"):
+        assert res.status(p) == job.verdicts[p].status, p
+    assert res.violated("mission-completion") and res.counterexample("mission-completion").kind == "lasso"
+    assert res.states == job.graph.n_states

@@ -1,6 +1,6 @@
 """Pictures of counterexamples: a message sequence chart (PNG, SVG) and the state graph (DOT).
 
-The chart is drawn from :func:`~roar_formal.explore.report.counterexample_report`, so it
+The chart is drawn from :func:`~roar_formal.verify.report.counterexample_report`, so it
 shows what the text shows: one lifeline per agent, each constraint sent as an arrow
 from its sender to the agent that handles it, state changes, primitive calls and
 variable changes as notes, and, at a deadlock, the wait-for cycle as red arrows.
@@ -11,6 +11,7 @@ picture in the docs or a CI artifact changes only when the counterexample does.
 from __future__ import annotations
 
 import io
+from typing import Optional
 from pathlib import Path
 
 from ..errors import RoarError
@@ -66,7 +67,9 @@ def _rows(rep: dict) -> tuple[list[str], list[tuple]]:
                 rows.append(("note", ev["agent"], f"{s['step']}. {text}", colour))
         for ch in s["changes"]:
             see(ch["agent"])
-            rows.append(("note", ch["agent"], f"{s['step']}. {ch['var']}: {ch['old']} -> {ch['new']}", "#e4f5e0"))
+            change = f"{ch['var']}: {ch['old']} -> {ch['new']}" if ch.get("old") is not None \
+                else f"{ch['var']} = {ch['new']}"
+            rows.append(("note", ch["agent"], f"{s['step']}. {change}", "#e4f5e0"))
     if roar:
         for a in rep["final"]:
             see(a)
@@ -87,13 +90,21 @@ def sequence_chart(res, prop: str):
     ``artists`` names what a test or a caller may check: ``lifelines`` and ``heads`` (per
     agent), ``arrows`` ([(sender, target, label, artist)]), ``notes`` (text artists),
     ``cycle`` ([(a, b, artist)], the deadlock's wait-for cycle) and ``cycle_label``."""
+    rep = counterexample_report(res, prop)
+    v = res.verdicts[prop]
+    return chart_of_report(rep, f"{res.job.name}: {prop} {v.status} ({v.counterexample.kind} of "
+                                f"{v.counterexample.length()} steps)", f"{res.job.name}: the {prop} counterexample")
+
+
+def chart_of_report(rep: dict, title: str, what: str):
+    """The message sequence chart of a report in the form of :func:`counterexample_report`
+    (a counterexample, a replayed trace, a run): (fig, ax, artists) as :func:`sequence_chart`."""
     from matplotlib.figure import Figure
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    rep = counterexample_report(res, prop)
     agents, rows = _rows(rep)
     if not agents:
-        raise RoarError(f"{res.job.name}: the {prop} counterexample has no step to draw")
+        raise RoarError(f"{what} has no step to draw")
     dl = rep.get("deadlock") or {}
     cycle = dl.get("cycle") or []
     n_rows = len(rows) + (3 if cycle else 0)
@@ -106,9 +117,7 @@ def sequence_chart(res, prop: str):
     ax.set_axis_off()
     ax.set_xlim(-_SPACING / 2, x[agents[-1]] + _SPACING / 2)
     ax.set_ylim(-(n_rows + 0.5), 1.0)
-    v = res.verdicts[prop]
-    fig.suptitle(f"{res.job.name}: {prop} {v.status} ({v.counterexample.kind} of {v.counterexample.length()} steps)",
-                 fontsize=10, y=1 - 0.15 / height)
+    fig.suptitle(title, fontsize=10, y=1 - 0.15 / height)
     artists: dict = {"lifelines": {}, "heads": {}, "arrows": [], "notes": [], "cycle": [], "cycle_label": None}
     for a in agents:
         (line,) = ax.plot([x[a], x[a]], [0.3, -(n_rows + 0.3)], color="#555555", lw=1, ls="--", zorder=1,
@@ -169,8 +178,12 @@ def sequence_chart(res, prop: str):
 
 def render_chart(res, prop: str, fmt: str) -> bytes:
     """The chart as PNG or SVG bytes, identical for identical counterexamples."""
+    return figure_bytes(sequence_chart(res, prop)[0], fmt)
+
+
+def figure_bytes(fig, fmt: str) -> bytes:
+    """A figure as PNG or SVG bytes, with no date or software stamp (identical figures, identical bytes)."""
     import matplotlib
-    fig, _ax, _artists = sequence_chart(res, prop)
     buf = io.BytesIO()
     meta = {"Software": None} if fmt == "png" else {"Date": None, "Creator": None}
     with matplotlib.rc_context({"svg.hashsalt": "roar-formal", "svg.fonttype": "path"}):
@@ -269,3 +282,31 @@ def check_output_folder(folder: Path, option: str, inputs: list[Path]) -> None:
     resolved = {Path(p).resolve() for p in inputs}
     if folder.resolve() in resolved:
         raise RoarError(f"{option} {folder}: is an input of this command")
+
+
+def check_output_file(path: Path, option: str, inputs: list[Path]) -> None:
+    """Refuse, before any work, a picture path that is an input, a folder, or in no writable folder."""
+    path = Path(path)
+    if path.exists() and path.is_dir():
+        raise RoarError(f"{option} {path}: is a folder, expected a file path")
+    if path.resolve() in {Path(p).resolve() for p in inputs}:
+        raise RoarError(f"{option} {path}: is an input of this command; not overwritten")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise RoarError(f"{option} {path}: {parent} is not a folder")
+    import os
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise RoarError(f"{option} {path}: {parent} is not writable")
+
+
+def write_chart(rep: dict, title: str, what: str, png: Optional[Path], svg: Optional[Path]) -> list[Path]:
+    """Draw the chart of a report into the PNG and SVG files asked for (atomically)."""
+    out = []
+    if png is None and svg is None:
+        return out
+    fig = chart_of_report(rep, title, what)[0]
+    for path, fmt in ((png, "png"), (svg, "svg")):
+        if path is not None:
+            write_atomic_bytes(path, figure_bytes(fig, fmt))
+            out.append(Path(path))
+    return out

@@ -10,37 +10,8 @@ from typing import Optional
 import typer
 from rich.markup import escape
 
-from ..console import make_console
+from .console import make_console, show
 from ..errors import RoarError
-
-
-def functional_module(spec_path: Path, given: Optional[Path]) -> Optional[Path]:
-    """The functional-layer module of a spec (``--functional FILE`` or the one next to it), or None."""
-    from .functional import find_module
-    return find_module(spec_path, given)
-
-
-def load_registry(path: Optional[Path]):
-    """Import a functional-layer module and build its registry (``registry()``, or ``REGISTRY``)."""
-    if path is None:
-        return None
-    from .functional import import_module
-    mod = import_module(path)
-    make = getattr(mod, "registry", None)
-    if callable(make):
-        try:
-            reg = make()
-        except RoarError:
-            raise
-        except Exception as exc:
-            raise RoarError(f"{path}: registry() failed: {type(exc).__name__}: {exc}") from None
-    else:
-        reg = getattr(mod, "REGISTRY", None)
-    from .functional import Registry
-    if not isinstance(reg, Registry):
-        raise RoarError(f"{path}: a functional-layer module defines registry() returning a Registry "
-                        f"(roar_formal.roar.functional.Registry)")
-    return reg
 
 
 def register(app: typer.Typer) -> None:
@@ -60,16 +31,28 @@ def register(app: typer.Typer) -> None:
         fair: bool = typer.Option(False, "--fair", help="Fair round-robin scheduling instead of seeded random."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the CLF rule of each event."),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+        png: Optional[Path] = typer.Option(None, "--png", help="Draw the run's message sequence chart here (PNG)."),
+        svg: Optional[Path] = typer.Option(None, "--svg", help="Draw the run's message sequence chart here (SVG)."),
+        dot: Optional[Path] = typer.Option(None, "--dot", help="Write the run's task tree here (DOT: goals, "
+                                           "commands, sequential-achievement constraints; `dot -Tsvg` draws it)."),
     ) -> None:
         """Run SPEC on a request to quiescence and print the ROAR-level trace.
 
         Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
         """
-        from .compile import compile_spec
-        from .parser import load_spec
-        from .run import parse_fault, run_model
+        from ..roar.functional import functional_module, load_registry
+        from ..roar.traces import jsonable, write_run_trace
+        from ..roar.compile import compile_spec
+        from ..roar.spec import load_spec
+        from ..roar.run import parse_fault, run_model
         faults = [parse_fault(f) for f in fault]
         spec_ast = load_spec(spec)
+        if png is not None or svg is not None or dot is not None:
+            from ..roar.sources import spec_files
+            from ..verify.pictures import check_output_file
+            for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
+                if path is not None:
+                    check_output_file(path, option, [Path(f) for f in spec_files(spec_ast)] + [Path(spec)])
         reg = load_registry(functional_module(spec, functional))
         model = compile_spec(spec_ast, request, registry=reg, functional="python")
         console = make_console()
@@ -80,14 +63,30 @@ def register(app: typer.Typer) -> None:
         res = run_model(model, seed=seed, max_steps=max_steps, registry=reg, faults=faults, fair=fair)
         rules = [s[0] for s in res.steps]
         if not as_json:   # the one step table of run, simulate and replay (trace/render.py)
-            from ..trace.render import event_rows, print_events
-            print_events(console, event_rows(res.events, rules=rules), verbose=verbose)
+            from ..trace.render import event_lines, event_rows
+            show(console, event_lines(event_rows(res.events, rules=rules), verbose=verbose))
         if trace is not None:
-            _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault))
+            _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault,
+                                                   functional_module(spec, functional)))
+        drawn = []
+        if png is not None or svg is not None:
+            from ..verify.pictures import write_chart
+            from ..verify.report import run_report
+            drawn = write_chart(run_report(res), f"{Path(spec).name}: request {request}: {res.outcome}",
+                                f"the run of {request}", png, svg)
+        if dot is not None:
+            from ..roar.traces import run_records
+            from ..tca.roar_runs import task_tree_events
+            from ..tca.tree_dot import task_tree_dot
+            from ..trace.format import write_atomic
+            header, records = run_records(res, spec, request, seed, fault, functional_module(spec, functional))
+            text = task_tree_dot(task_tree_events(header, records),
+                                 f"{Path(spec).name}: request {request}: {res.outcome}")
+            _writing(dot, lambda: write_atomic(dot, text))
         if as_json:
             print(json.dumps({"spec": str(spec), "request": request, "seed": seed, "faults": fault,
                               "outcome": res.outcome, "quiescent": res.quiescent, "clf_steps": len(res.steps),
-                              "error_context": res.error_context, "final": {k: _jsonable(v) for k, v in res.final.items()},
+                              "error_context": res.error_context, "final": {k: jsonable(v) for k, v in res.final.items()},
                               "events": [dict(step=e.step, **e.as_json()) for e in res.events]}, indent=2))
         else:
             style = "green" if res.ok else "red"
@@ -98,6 +97,10 @@ def register(app: typer.Typer) -> None:
                 console.print(f"  error context: {line}")
             if trace is not None:
                 console.print(f"trace written to {trace}")
+            for path in drawn:
+                console.print(f"chart written to {path}")
+            if dot is not None:
+                console.print(f"task tree written to {dot}")
         if not res.ok:
             raise typer.Exit(1)
 
@@ -112,10 +115,11 @@ def register(app: typer.Typer) -> None:
 
         Primitives become their declared outcome rules, so `roar-verify clf` runs the result.
         """
+        from ..roar.functional import functional_module, load_registry
         from ..trace.format import write_atomic
-        from .compile import compile_spec
-        from .parser import load_spec
-        from .ast import walk
+        from ..roar.compile import compile_spec
+        from ..roar.spec import load_spec
+        from ..roar.ast import walk
         reg = load_registry(functional_module(spec, functional))
         spec_ast = load_spec(spec)
         model = compile_spec(spec_ast, request, registry=reg, functional="abstract")
@@ -136,32 +140,3 @@ def _writing(path: Path, write) -> None:
         write()
     except OSError as exc:
         raise RoarError(f"{path}: cannot write: {exc.strerror or exc}") from None
-
-
-def _jsonable(v):
-    from fractions import Fraction
-    if isinstance(v, Fraction):
-        return float(v)
-    if isinstance(v, tuple):
-        return [_jsonable(x) for x in v]
-    return v
-
-
-def write_run_trace(path: Path, res, spec, request: str, seed: int, faults) -> None:
-    """The run as a JSON Lines trace (trace/format.py): one line per CLF step, with its ROAR events."""
-    from ..trace.format import write_trace
-    by_step: dict[int, list] = {}
-    for e in res.events:
-        by_step.setdefault(e.step, []).append(e.as_json())
-    steps = []
-    for i, (rule, consumed, produced) in enumerate(res.steps, 1):
-        evs = by_step.get(i)
-        steps.append({"rule": rule, "consumed": consumed, "produced": produced,
-                      "event": (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None,
-                      "loop": False})
-    from .explore import sequential_pairs
-    header = {"kind": "roar-run", "seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text]
-                                                for p in sequential_pairs(res.model)],
-              "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
-              "outcome": res.outcome, "requests": res.requests}
-    write_trace(path, header, steps)

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from ..errors import Pos, RoarError
-from .search import Budget
+from ..explore.search import Budget
 
 PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant",
               "mission-completion", "mission-failure")
@@ -36,6 +36,7 @@ class PropertySpec:
     check: list[str] = field(default_factory=list)
     progress: list[str] = field(default_factory=list)
     fairness: str = "first-argument"
+    strong: bool = False   # livelock under strong fairness ([livelock] strength = "strong")
     accept: Optional[str] = None  # a positive CLF type: quiescent states matching it are final
     sources: list[str] = field(default_factory=list)
     fairness_given: bool = False
@@ -141,6 +142,8 @@ def _typed(d: dict, key: str, ty, path: Path, what: str) -> Any:
         tn = {int: "an integer", str: "a string", list: "a list", bool: "true or false",
               float: "a number", dict: "a table"}.get(ty, str(ty))
         raise RoarError(f"'{key}' in {what} must be {tn}, not {v!r}", Pos(str(path), _line_of(path, key), 1))
+    if isinstance(v, str) and "\0" in v:   # no path, name or formula holds a NUL character
+        raise RoarError(f"'{key}' in {what} holds a NUL character (\\u0000)", Pos(str(path), _line_of(path, key), 1))
     return v
 
 
@@ -195,7 +198,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                 spec.check.append(p)
     if "livelock" in d:
         ll = _typed(d, "livelock", dict, path, "a property file")
-        _expect_keys(ll, {"progress", "fairness"}, "[livelock]", path)
+        _expect_keys(ll, {"progress", "fairness", "strength"}, "[livelock]", path)
         if "progress" in ll:
             for x in _typed(ll, "progress", list, path, "[livelock]"):
                 if isinstance(x, str) and looks_like_spec(x):
@@ -209,6 +212,13 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                                 Pos(str(path), _line_of(path, "fairness"), 1))
             spec.fairness = f
             spec.fairness_given = True
+        if "strength" in ll:
+            st = _typed(ll, "strength", str, path, "[livelock]")
+            if st not in ("weak", "strong"):
+                raise RoarError(f"strength must be 'weak' (a process enabled all along a cycle moves on it) or "
+                                f"'strong' (a process enabled infinitely often moves infinitely often), not '{st}'",
+                                _value_pos(path, "strength"))
+            spec.strong = st == "strong"
     if "sequential-achievement" in d:
         sa = _typed(d, "sequential-achievement", dict, path, "a property file")
         _expect_keys(sa, {"recipes"}, "[sequential-achievement]", path)
@@ -394,7 +404,7 @@ def load_job(path: str | Path) -> Job:
     if not isinstance(props, list):
         raise RoarError("'properties' must be a path or a list of paths", Pos(str(path), _line_of(path, "properties"), 1))
     for p in props:
-        if not isinstance(p, str):
+        if not isinstance(p, str) or "\0" in p:
             raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
                             Pos(str(path), _line_of(path, "properties"), 1))
         load_properties((base / p).resolve(), job.props)

@@ -13,19 +13,12 @@ shown as ``\\x1b``, never sent to the terminal.
 
 from __future__ import annotations
 
-import re
 from typing import Any
 
 from rich.console import Console
 from rich.text import Text
 
-_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
-
-
-def visible(text: str) -> str:
-    """``text`` with control characters (other than newline and tab) written as ``\\xNN``."""
-    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
-
+from ..lines import Lines, visible
 
 class SafeConsole(Console):
     """A console whose strings never carry control characters to the terminal."""
@@ -53,3 +46,9 @@ def make_console(**kwargs: Any) -> Console:
 def styled(*parts: Any) -> Text:
     """Text from plain strings and ``(text, style)`` pairs; nothing in it is markup or emoji."""
     return Text.assemble(*parts)
+
+
+def show(console: Console, lines: Lines) -> None:
+    """Print a report of the library (:class:`~roar_formal.lines.Lines`) with its styles."""
+    for line in lines:
+        console.print(Text.assemble(*line.segments), soft_wrap=not line.wrap)

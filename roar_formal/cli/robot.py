@@ -10,55 +10,12 @@ import typer
 
 from ..errors import RoarError
 
-__all__ = ["register", "split_faults", "prepare"]
+__all__ = ["register"]
 
 
 def _console():
-    from ..console import make_console
+    from .console import make_console
     return make_console()
-
-
-def split_faults(names: list[str], scenario, model=None) -> tuple[list[str], list]:
-    """``--fault`` values: scenario fault points (``door_closes``) and primitive faults (``compute_path:1``)."""
-    from ..roar.run import parse_fault
-    world, prims = [], []
-    known = set(scenario.fault_names())
-    functions = set()
-    if model is not None:
-        for owner, name in model.functions.values():
-            functions |= {name, f"{owner}::{name}"} if owner else {name}
-    for n in names:
-        if n in known:
-            world.append(n)
-            continue
-        try:
-            f = parse_fault(n)
-        except RoarError:
-            f = None
-        if f is None or (model is not None and f.name not in functions):
-            raise RoarError(f"--fault {n!r}: not a fault point of scenario '{scenario.name}' "
-                            f"({', '.join(sorted(known)) or 'it has none'}) nor a primitive fault "
-                            f"(NAME, NAME:K or NAME=OUTCOME, NAME a function the spec calls)")
-        prims.append(f)
-    return world, prims
-
-
-def prepare(spec: Path, request: str, scenario: Path, functional: Optional[Path] = None):
-    """(spec AST, compiled model in run mode, robot binding, scenario): everything a robot run needs."""
-    from ..roar.compile import compile_spec
-    from ..roar.parser import load_spec
-    from .binding import load_robot_binding
-    from .scenario import load_scenario
-    sc = load_scenario(scenario)
-    spec_ast = load_spec(spec)
-    binding = load_robot_binding(spec, functional)
-    model = compile_spec(spec_ast, request, registry=binding.robot, functional="python")
-    return spec_ast, model, binding, sc
-
-
-def spec_files(spec_ast) -> list[str]:
-    from ..roar.ast import walk
-    return sorted({n.pos.file for n in walk(spec_ast) if n.pos is not None and Path(n.pos.file).is_file()})
 
 
 def register(app: typer.Typer) -> None:
@@ -83,9 +40,12 @@ def register(app: typer.Typer) -> None:
         Prints the ROAR-level trace with the simulated time and the robot's pose at each event.
         Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
         """
-        from ..trace.render import event_rows, print_events
-        from .report import draw_sim, write_robot_trace
-        from .sim import simulate
+        from ..roar.sources import spec_files
+        from ..robot.setup import prepare, split_faults
+        from ..trace.render import event_lines, event_rows
+        from .console import show
+        from ..robot.report import draw_sim, write_robot_trace
+        from ..robot.sim import simulate
 
         spec_ast, model, binding, sc = prepare(spec, request, scenario, functional)
         world_faults, prim_faults = split_faults(fault, sc, model)
@@ -115,7 +75,7 @@ def register(app: typer.Typer) -> None:
                               "events": [dict(step=e.step, time=round(res.times[e.step - 1], 4), **e.as_json())
                                          for e in res.events]}, indent=2))
         else:
-            print_events(console, event_rows(res.events, res.times, res.poses, rules), verbose=verbose)
+            show(console, event_lines(event_rows(res.events, res.times, res.poses, rules), verbose=verbose))
             from rich.text import Text
             end = {"quiescent": "quiescent", "horizon": f"horizon of {sc.horizon:g} s reached",
                    "max-steps": f"stopped after {max_steps} CLF steps",
@@ -158,8 +118,9 @@ def register(app: typer.Typer) -> None:
         compiled (abstract) model; an outcome the robot never produced is a warning. Exit status:
         0 when the abstraction is sound for these runs, 1 when it is not, 2 on bad input.
         """
+        from ..robot.setup import prepare, split_faults
         from rich.text import Text
-        from .conform import conform
+        from ..robot.conform import conform
 
         if runs < 1 or runs > 10_000:
             raise RoarError(f"--runs {runs}: expected a number of runs from 1 to 10000")
@@ -188,6 +149,7 @@ def register(app: typer.Typer) -> None:
 
 def _check_output(path: Optional[Path], spec_ast, spec: Path, scenario: Path) -> None:
     """Refuse, before the work starts, an output path that would overwrite an input or cannot be written."""
+    from ..roar.sources import spec_files
     if path is None:
         return
     p = Path(path)
@@ -214,10 +176,12 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     """``roar-verify replay`` for robot traces (``--model SPEC``) and for counterexamples on the robot
     (``--on-robot SCENARIO``). Returns the exit status. Only the spec named on the command line is
     compiled and only its functional-layer module is imported: nothing the trace names is run."""
+    from ..roar.sources import spec_files
+    from ..robot.setup import prepare, split_faults
     from rich.text import Text
     from ..roar.compile import compile_spec
     from ..trace.format import read_trace
-    from .report import TRACE_KIND, sources_fingerprint
+    from ..robot.report import TRACE_KIND, sources_fingerprint
 
     header, records = read_trace(trace)
     console = _console()
@@ -225,7 +189,7 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
         named = header.get("spec")
         raise RoarError(f"{trace}: pass the spec to replay it on: --model SPEC"
                         + (f" (the trace was made from {named}; it is not opened from the trace)" if named else ""))
-    from .conform import check_records
+    from ..robot.conform import check_records
     check_records(records, str(trace))
     request = header.get("request")
     if not isinstance(request, str) or not request:
@@ -234,7 +198,7 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
         return _replay_robot_backed(trace, header, records, model, on_robot, loops, png, functional, force, console)
     if on_robot is not None:
         _check_output(png, None, model, on_robot)
-        from .onrobot import replay_on_robot
+        from ..robot.onrobot import replay_on_robot
         spec_ast, compiled, binding, sc = prepare(model, request, on_robot, functional)
         world_faults, prims = split_faults(fault, sc, compiled)
         if prims:
@@ -253,7 +217,7 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
         console.print(Text(f"robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}° at "
                            f"t = {res.time:.2f} s"))
         if png is not None:
-            from .report import draw_robot
+            from ..robot.report import draw_robot
             draw_robot(png, res.robot, title=f"{sc.name}: counterexample "
                        f"{'realised' if res.realised else 'not realised'} (t = {res.time:.1f} s)",
                        marks=[] if res.realised else [(x, y, "diverges here")])
@@ -262,9 +226,9 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     if header.get("kind") != TRACE_KIND:
         raise RoarError(f"{trace}: not a robot trace (kind {header.get('kind')!r}); a counterexample replays on the "
                         f"engine with --model alone, or on the robot with --on-robot SCENARIO --model SPEC")
-    from ..roar.parser import load_spec
-    from .binding import load_robot_binding
-    from .conform import replay_on_model
+    from ..roar.spec import load_spec
+    from ..robot.binding import load_robot_binding
+    from ..robot.conform import replay_on_model
     spec_ast = load_spec(model)
     mine = sources_fingerprint(spec_files(spec_ast))
     theirs = header.get("spec_fingerprint")
@@ -288,9 +252,10 @@ def _replay_robot_backed(trace: Path, header: dict, records: list, model: Path, 
                          png: Optional[Path], functional: Optional[Path], force: bool, console) -> int:
     """``replay TRACE --on-robot SCENARIO --model SPEC`` on a robot-backed counterexample: one robot,
     driven straight through the counterexample's launches, fault choices and advances."""
+    from ..robot.setup import prepare
     from rich.text import Text
     from ..trace.fingerprint import fingerprint
-    from .onrobot import check_robot_records, replay_robot_path
+    from ..robot.onrobot import check_robot_records, replay_robot_path
     info = header["robot"]
     if not isinstance(info, dict):
         raise RoarError(f"{trace}: the header's 'robot' must be an object")
@@ -312,7 +277,7 @@ def _replay_robot_backed(trace: Path, header: dict, records: list, model: Path, 
                             on_line=lambda line: console.print(Text(line), soft_wrap=True))
     console.print(Text(res.message, style="green" if res.realised else "red"), soft_wrap=True)
     if png is not None:
-        from .report import draw_robot
+        from ..robot.report import draw_robot
         x, y, _th = res.pose
         marks = []
         bad = info.get("violation")

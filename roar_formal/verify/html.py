@@ -2,10 +2,10 @@
 
 The folder holds ``index.html`` (the summary table, then per job each verdict with its
 counterexample in ROAR terms), ``charts/`` (the message sequence chart of each
-counterexample as SVG, from :mod:`~roar_formal.explore.pictures`), ``traces/`` (a copy of
+counterexample as SVG, from :mod:`~roar_formal.verify.pictures`), ``traces/`` (a copy of
 each saved counterexample trace, linked from the page) and ``report.json`` (the same data
 as ``check --json``). The page is static: no script, no network access; the counterexample
-text comes from :func:`~roar_formal.explore.report.counterexample_report`, the one source
+text comes from :func:`~roar_formal.verify.report.counterexample_report`, the one source
 the printed report, ``--json`` and the charts read. Every file is written atomically
 (:func:`~roar_formal.trace.format.write_atomic_bytes`), ``index.html`` last, so a reader
 never sees a page that links files not yet written.

@@ -24,12 +24,12 @@ from ..clf.query import with_big_stack
 from ..clf.signature import Elaborator, ExecDirective
 from ..errors import RoarError
 from ..trace.format import write_trace
-from .graph import StateGraph
-from .ground import GroundExplorer, GroundModel, GroundingStopped, NotGround
+from ..explore.graph import StateGraph
+from ..explore.ground import GroundExplorer, GroundModel, GroundingStopped, NotGround
 from .jobs import Job
-from .properties import check_states, Verdict, check_deadlock, check_livelock
-from .search import Budget, Explorer, rss_mb
-from .system import ClfSystem, Options
+from ..explore.properties import check_states, Verdict, check_deadlock, check_livelock
+from ..explore.search import Budget, Explorer, rss_mb
+from ..explore.system import ClfSystem, Options
 
 FIRST_ROUND = 20_000
 
@@ -145,21 +145,21 @@ def make_never(program_text: str, file: str, patterns: list) -> Callable[[Contex
 
 def run_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
     if getattr(job, "robot", None) is not None:
-        from ..robot.check import run_robot_job   # the robot is the functional layer (robot/check.py)
+        from .robot import run_robot_job   # the robot is the functional layer (verify/robot.py)
         return with_big_stack(run_robot_job, job, on_progress)
     if job.is_roar:
-        return with_big_stack(_run_roar_job, job, on_progress)
+        return with_big_stack(run_roar_job, job, on_progress)
     return with_big_stack(_run_job, job, on_progress)
 
 
-def _run_roar_job(job: Job, on_progress) -> JobResult:
+def run_roar_job(job: Job, on_progress) -> JobResult:
     """A job on a ROAR spec: the compiled model explored with primitives as their outcomes,
     weak fairness per agent, requests reaching a final state as progress (by default)."""
-    from ..roar.commands import functional_module, load_registry
+    from ..roar.functional import functional_module, load_registry
     from ..roar.compile import compile_spec
     from ..roar.explore import RoarSystem, roar_final
-    from ..roar.parser import load_spec
-    from ..trace.fingerprint import spec_fingerprint
+    from ..roar.spec import load_spec
+    from ..roar.sources import spec_fingerprint
     t0 = time.perf_counter()
     fn_path = functional_module(job.spec, job.functional)
     reg = load_registry(fn_path)
@@ -188,7 +188,7 @@ def _run_roar_job(job: Job, on_progress) -> JobResult:
                 verdicts[p] = check_deadlock(graph, lambda sid: accept_ctx(states[sid]))
             elif p == "livelock":
                 verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of, step_of)
-                                             if spec_checks.progress else graph)
+                                             if spec_checks.progress else graph, strong=props.strong)
             elif p == "invariant" or p in spec_checks.handles:
                 verdicts[p] = spec_checks.decide(p, graph, ctx_of,
                                                  (lambda sid: never(states[sid])) if never is not None else None,
@@ -282,12 +282,12 @@ def _search(job: Job, t0: float, explore, options: Options):
     the unreduced graph: a reduced graph keeps every fair cycle it shows (fairness is judged
     with every enabled group, expanded or not) but may miss one (docs/checking.md)."""
     explorer, decide = explore(options)
-    graph, verdicts = _rounds(job, t0, explorer, decide)
+    graph, verdicts = search_rounds(job, t0, explorer, decide)
     lv = verdicts.get("livelock")
     if options.reduction and lv is not None and lv.status == "holds" and options.fairness != "none":
         full_options = replace(options, reduction=False)
         ex2, decide2 = explore(full_options)
-        graph2, verdicts2 = _rounds(job, t0, ex2, decide2)
+        graph2, verdicts2 = search_rounds(job, t0, ex2, decide2)
         lv2 = verdicts2["livelock"]
         if lv2.status == "holds":
             lv.message += f"; confirmed without reduction ({graph2.n_states:,} states)"
@@ -300,7 +300,7 @@ def _search(job: Job, t0: float, explore, options: Options):
     return explorer, graph, verdicts
 
 
-def _rounds(job: Job, t0: float, explorer, decide):
+def search_rounds(job: Job, t0: float, explorer, decide):
     limit = job.budget.max_states
     k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
     graph = verdicts = None
@@ -363,7 +363,8 @@ def _run_job(job: Job, on_progress) -> JobResult:
             if p == "invariant":
                 verdicts[p] = check_states(graph, p, lambda sid: never(state_of(sid)))
             else:
-                verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else check_livelock(graph)
+                verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else \
+                    check_livelock(graph, strong=job.props.strong)
         return verdicts
 
     if grounding_stopped is not None:
@@ -374,7 +375,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
         verdicts = decide(graph, lambda sid: ex.states[sid])
     elif ground_model is not None:
         rounds = _GroundRounds(ground_model, on_progress)
-        graph, verdicts = _rounds(job, t0, rounds, lambda g: decide(g, rounds.state_of))
+        graph, verdicts = search_rounds(job, t0, rounds, lambda g: decide(g, rounds.state_of))
     else:
         def explore(opts: Options):
             ex = Explorer(ClfSystem(program, start, opts), job.search, on_progress)

@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from ..console import make_console
+from .console import make_console
 from ..errors import RoarError
 
 #: the largest value ``tca-simulate --size NAME=N`` accepts (the unrolled tree is bounded too:
@@ -23,9 +23,9 @@ STATUS_STYLE = {"proved": "green", "consistent": "green", "refuted": "yellow", "
 
 def _obligations(models: list[Path]):
     """Every obligation: the axiom set's, then each model's claims (metric ones as model/claim pairs)."""
-    from .model import load_model
-    from .theorems import OBLIGATIONS
-    from .window import claim_obligation
+    from ..tca.model import load_model
+    from ..tca.theorems import OBLIGATIONS
+    from ..tca.window import claim_obligation
 
     rows = [(ob.name, ob, None) for ob in OBLIGATIONS]
     for path in models:
@@ -58,7 +58,7 @@ def _list_table(rows) -> Table:
 
 
 def _countermodel_table(name: str, cm) -> Table:
-    from .countermodel import RELATION_LABEL, format_number
+    from ..tca.countermodel import RELATION_LABEL, format_number
 
     title = f"countermodel for {name}" + (f" at t = {format_number(cm.time)}" if cm.time is not None else "")
     table = Table(title=title, title_justify="left")
@@ -84,8 +84,8 @@ def register(app: typer.Typer) -> None:
         deps: bool = typer.Option(False, "--deps", help="Show the axioms each proof needs (minimal set)."),
     ) -> None:
         """Prove the TCA axiom set's theorems (and a model's claims); exit 1 if any result is not the expected one."""
-        from .metric import metric_outcome
-        from .prover import dependencies, prove
+        from ..tca.metric import metric_outcome
+        from ..tca.prover import dependencies, prove
 
         console = make_console()
         rows = _select(_obligations(list(model or [])), list(theorems or []))
@@ -126,7 +126,7 @@ def register(app: typer.Typer) -> None:
         trace: Path = typer.Argument(..., help="A JSON Lines trace (engine run, robot run or counterexample)."),
     ) -> None:
         """Check a trace's task tree against the TCA axioms and its declared constraints; exit 1 on violations."""
-        from .check import check_trace
+        from ..tca.check import check_trace
 
         console = make_console()
         report = check_trace(trace)
@@ -157,10 +157,10 @@ def register(app: typer.Typer) -> None:
         no_achievement: bool = typer.Option(False, "--no-achievement", help="Leave goals' achievement out."),
     ) -> None:
         """Run a model under TCA's eager dispatching and write the run as a JSON Lines trace."""
-        from .model import load_model
-        from .schedule import sample_timing, simulate
-        from .trace_events import dumps
-        from .unroll import unroll
+        from ..tca.model import load_model
+        from ..tca.schedule import sample_timing, simulate
+        from ..tca.trace_events import dumps
+        from ..tca.unroll import unroll
 
         from ..trace.format import write_atomic
 

@@ -13,9 +13,8 @@ from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
-from ..console import make_console, styled
 from ..errors import RoarError
-from .report import counterexample_report, print_counterexample
+from .console import make_console, show, styled
 
 
 _STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
@@ -54,8 +53,8 @@ def register(app: typer.Typer) -> None:
         ran out of budget on a property the job expects nothing of (no verdict).
         """
         import math
-        from .check import run_job, save_counterexample
-        from .jobs import find_jobs, is_model_path, job_for_model, load_job
+        from ..verify.check import run_job, save_counterexample
+        from ..verify.jobs import find_jobs, is_model_path, job_for_model, load_job
 
         console = make_console(stderr=as_json)
         props = [x.strip() for p in prop for x in p.split(",") if x.strip()]
@@ -67,7 +66,7 @@ def register(app: typer.Typer) -> None:
             raise RoarError(f"--max-states {max_states}: expected a positive number of states")
         if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
             raise RoarError(f"--max-seconds {max_seconds}: expected a positive, finite number of seconds")
-        from .pictures import check_output_folder, write_pictures
+        from ..verify.pictures import check_output_folder, write_pictures
         outputs = [(png, "--png"), (svg, "--svg"), (dot, "--dot"), (html, "--html")]
         if not no_traces and traces != Path("roar-traces"):   # the default is checked when written
             outputs.append((traces, "--traces"))
@@ -124,7 +123,7 @@ def register(app: typer.Typer) -> None:
             if not as_json:
                 _print_result(console, res, verbose)
         if html is not None:
-            from .html import write_html_report
+            from ..verify.html import write_html_report
             page = write_html_report(html, results, [_json(r) for r in results], tuple(paths) + tuple(files))
             if not as_json:
                 console.print(f"HTML report: {page}", soft_wrap=True)
@@ -150,12 +149,17 @@ def register(app: typer.Typer) -> None:
                  "functional-layer module is found next to it), or the .clf program. Required: a trace's own "
                  "paths are never opened (docs/trust.md)."),
         states: bool = typer.Option(False, "--states", help="Print the whole state after every step."),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="Show each step's CLF rule and facts too."),
+        interactive: bool = typer.Option(False, "--interactive", "-i",
+                                         help="Step through the trace: next, back, jump, state, agent, end, quit."),
         on_robot: Optional[Path] = typer.Option(None, "--on-robot", help="Drive the reference robot of this "
                                                 "scenario through the counterexample (needs --model SPEC)."),
         seed: int = typer.Option(0, "--seed", help="With --on-robot: the robot's seed."),
         fault: List[str] = typer.Option([], "--fault", help="With --on-robot: a fault point of the scenario."),
         loops: int = typer.Option(3, "--loops", help="With --on-robot: how many times to drive a lasso's cycle."),
-        png: Optional[Path] = typer.Option(None, "--png", help="With --on-robot: draw the robot's run here."),
+        png: Optional[Path] = typer.Option(None, "--png", help="Draw the trace's message sequence chart here (PNG); "
+                                           "with --on-robot, the robot's run."),
+        svg: Optional[Path] = typer.Option(None, "--svg", help="Draw the trace's message sequence chart here (SVG)."),
         functional: Optional[Path] = typer.Option(
             None, "--functional", help="With a spec: this functional-layer module instead of the one next to it."),
         force: bool = typer.Option(False, "--force",
@@ -163,6 +167,9 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Step through a trace on the engine, checking that every step is enabled.
 
+        On a spec the steps print as ROAR events and variable changes (CLF with -v), then the
+        final per-agent state; the trace's claim is confirmed on the model (a deadlock is still a
+        deadlock, a cycle closes, the sequential-achievement pair is still broken): exit 1 if not.
         The model comes from --model, never from the trace: a trace is data (docs/trust.md).
         A robot trace (from `simulate --trace`) replays on the compiled model of the spec given with
         --model; a counterexample replays on the robot with --on-robot SCENARIO --model SPEC.
@@ -170,38 +177,111 @@ def register(app: typer.Typer) -> None:
         from ..trace.format import read_trace
         head = read_trace(trace)[0]
         if on_robot is not None or head.get("kind") == "roar-robot-run" or head.get("robot") is not None:
-            from ..robot.commands import replay_robot
+            from .robot import replay_robot
             if loops < 1 or loops > 1000:
                 raise RoarError(f"--loops {loops}: expected 1 to 1000")
             code = replay_robot(trace, model, on_robot, seed, fault, loops, png, functional, force)
             if code:
                 raise typer.Exit(code)
             return
-        from ..clf.query import show_context, with_big_stack
-        from ..trace.replay import replay
+        from ..clf.query import with_big_stack
+        from ..verify.pictures import check_output_file, write_chart
+        from ..verify.replay import replay_trace
+        from ..verify.report import replay_report, replay_state_lines, replay_step_lines
 
+        for path, option in ((png, "--png"), (svg, "--svg")):
+            if path is not None:
+                check_output_file(path, option, [trace] + ([model] if model is not None else []))
         console = make_console()
-
-        def on_step(i, rec, state):
-            loop = " (cycle)" if rec.get("loop") else ""
-            console.print(f"[bold]{i:>4}.[/] {escape(rec['rule'])} [dim]\\[{escape(str(rec['group']))}]"
-                          f"{loop}[/]  {escape(', '.join(rec['consumed']))} -> "
-                          f"{escape(', '.join(rec['produced']))}", markup=True)
-            if states:
-                for line in show_context(state):
-                    console.print(f"        {line}")
-
-        def run():
-            return replay(trace, on_step, model, functional=functional, force=force)
-
-        res = with_big_stack(run)
-        for note in res.notes:
+        rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
+        for note in rep.result.notes:
             console.print(f"note: {note}", style="yellow")
-        tail = " and the cycle closes" if res.cycle_closes else ""
-        console.print(f"replayed {res.steps} step{'s' if res.steps != 1 else ''}{tail}", style="green")
+        n = len(rep.steps)
+        if interactive:
+            _interactive_replay(console, rep, verbose)
+        else:
+            for i in range(1, n + 1):
+                show(console, replay_step_lines(rep, i, verbose))
+                if states:
+                    show(console, replay_state_lines(rep, i))
+            if rep.compiled is not None and not states:
+                show(console, replay_state_lines(rep, n))
+        tail = " and the cycle closes" if rep.result.cycle_closes else ""
+        console.print(f"replayed {n} step{'s' if n != 1 else ''}{tail}: every step is a step of the model",
+                      style="green")
+        what = rep.header.get("property") or rep.header.get("kind") or "trace"
+        for path in write_chart(replay_report(rep), f"{Path(trace).name}: replay of the {what} "
+                                f"({len(rep.steps)} steps)", f"the trace {trace}", png, svg):
+            console.print(f"chart written to {path}")
+        if rep.confirmed is False:
+            console.print(f"NOT CONFIRMED: {rep.confirmation}", style="red")
+            raise typer.Exit(1)
+        console.print(("confirmed: " if rep.confirmed else "") + rep.confirmation,
+                      style="green" if rep.confirmed else "")
+
+
+_REPLAY_HELP = ("commands: Enter or n (next step), b (back), j N (jump to step N), s (state), "
+                "a AGENT (one agent's row), e (the end), q (quit), h (this help)")
+
+
+def _interactive_replay(console: Console, rep, verbose: bool) -> None:
+    """Step through a replayed trace: the state is always the one after the shown step."""
+    import sys
+    from ..verify.report import replay_state_lines, replay_step_lines
+
+    n = len(rep.steps)
+    i = 0
+    console.print(f"{n} steps; {_REPLAY_HELP}", style="dim")
+    while True:
+        try:
+            console.print(f"[{i}/{n}]> ", end="")
+            line = sys.stdin.readline()
+        except KeyboardInterrupt:
+            console.print()
+            return
+        if not line:   # end of input
+            console.print()
+            return
+        cmd, _, arg = line.strip().partition(" ")
+        if cmd in ("", "n"):
+            if i >= n:
+                console.print("at the end of the trace", style="yellow")
+                continue
+            i += 1
+            show(console, replay_step_lines(rep, i, verbose, always=True))
+        elif cmd == "b":
+            if i == 0:
+                console.print("at the start of the trace", style="yellow")
+                continue
+            i -= 1
+            console.print(f"back to the state after step {i}" if i else "back to the start")
+        elif cmd == "j":
+            if not arg.strip().isdigit() or not 0 <= int(arg) <= n:
+                console.print(f"j N: N from 0 to {n}", style="yellow")
+                continue
+            i = int(arg)
+            if i:
+                show(console, replay_step_lines(rep, i, verbose, always=True))
+        elif cmd == "e":
+            i = n
+            show(console, replay_step_lines(rep, i, verbose, always=True))
+        elif cmd == "s":
+            show(console, replay_state_lines(rep, i))
+        elif cmd == "a":
+            if not arg.strip():
+                console.print("a AGENT: name an agent", style="yellow")
+                continue
+            show(console, replay_state_lines(rep, i, arg.strip()))
+        elif cmd == "q":
+            return
+        elif cmd in ("h", "?", "help"):
+            console.print(_REPLAY_HELP)
+        else:
+            console.print(f"unknown command {cmd!r}; {_REPLAY_HELP}", style="yellow")
 
 
 def _print_result(console: Console, res, verbose: bool) -> None:
+    from ..verify.report import counterexample_lines
     head = "[green]ok[/]" if res.ok else "[red]UNEXPECTED[/]"  # printed with markup=True
     g = res.graph
     console.print(f"{head} [bold]{escape(res.job.name)}[/]  ({g.n_states:,} states, {g.n_edges:,} transitions, "
@@ -212,7 +292,7 @@ def _print_result(console: Console, res, verbose: bool) -> None:
     for p, v in res.verdicts.items():
         console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}", markup=True)
         if v.counterexample is not None:
-            print_counterexample(console, res, p, verbose)
+            show(console, counterexample_lines(res, p, verbose))
     if robot is not None and robot.comparison:
         console.print("  abstract model vs robot:")
         for p, a, r, why in robot.comparison:
@@ -247,7 +327,8 @@ def _summary(console: Console, results) -> None:
 
 
 def _json(r) -> dict:
-    from .check import counterexample_steps
+    from ..verify.check import counterexample_steps
+    from ..verify.report import counterexample_report
 
     out = {"job": r.job.name, "file": str(r.job.path), "model": str(r.job.model if not r.job.is_roar else r.job.spec),
            "ok": r.ok,

@@ -8,14 +8,14 @@ from typing import Optional
 
 import typer
 
-from ..console import make_console
+from .console import make_console
 from ..errors import QueryError, RoarError
 
 
 def celf_category(exc: Exception) -> str:
     """The kind of failure Celf would report: parse error, type error, mode error or query failed."""
     from ..errors import SyntaxError_, TypeError_, UnsupportedError
-    from .signature import ModeError
+    from ..clf.signature import ModeError
 
     if isinstance(exc, SyntaxError_):
         return "parse error"
@@ -32,7 +32,7 @@ def celf_category(exc: Exception) -> str:
 
 def run_clf(file: Path, seed: int = 0, trace: bool = False, fair: bool = False, proof: bool = False) -> None:
     """The ``roar-verify clf`` command: check and run FILE as Celf does (see docs/clf.md)."""
-    from .query import run_file, with_big_stack
+    from ..clf.query import run_file, with_big_stack
 
     console = make_console()
 

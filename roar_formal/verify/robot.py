@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 from ..errors import Pos, RoarError
-from ..explore.check import JobResult, _rounds, make_never, mark_defaults, roar_setup, spec_properties
-from ..explore.jobs import Job
+from .check import JobResult, search_rounds, make_never, mark_defaults, roar_setup, spec_properties
+from .jobs import Job
 from ..explore.properties import Verdict, check_deadlock, check_livelock, check_states
 from ..explore.search import Explorer, rss_mb
-from .explore import Abstraction, FaultChoices, RobotSystem, RobotTree
+from ..robot.explore import Abstraction, FaultChoices, RobotSystem, RobotTree
 
 __all__ = ["run_robot_job", "RobotInvariant", "RobotRun"]
 
@@ -75,9 +75,9 @@ class RobotRun:
         """The counterexample of ``prop`` driven on a straight robot, drawn as its trajectory
         (the pan angle for a pan unit) with the failing point marked: where a robot invariant
         broke, else where the path ends or the cycle repeats."""
-        from ..explore.check import counterexample_steps
-        from .onrobot import replay_robot_path
-        from .report import draw_robot
+        from .check import counterexample_steps
+        from ..robot.onrobot import replay_robot_path
+        from ..robot.report import draw_robot
         v = res.verdicts[prop]
         records = counterexample_steps(res.graph, v, res)
         header = {"robot": {"seed": self.seed, "on": list(self.on)}}
@@ -125,7 +125,7 @@ class _CtxList:
 
 
 def _conditions(job: Job, scenario) -> list[RobotInvariant]:
-    from .observe import check_condition, parse_condition
+    from ..robot.observe import check_condition, parse_condition
     out = []
     for kind, items in (("never", job.props.robot_never), ("always", job.props.robot_always)):
         for text, pos in items:
@@ -141,7 +141,7 @@ def _check_faults(job: Job, scenario, model) -> None:
     names = list(setup.faults) + list(setup.on)
     for n in names:
         if n not in scenario.faults:
-            from .scenario import did_you_mean
+            from ..robot.scenario import did_you_mean
             known = ", ".join(scenario.faults) or "none"
             raise RoarError(f"[robot] fault point '{n}' is not in scenario '{scenario.name}'"
                             f"{did_you_mean(n, scenario.faults)}; its fault points: {known}", setup.pos)
@@ -154,17 +154,17 @@ def _check_faults(job: Job, scenario, model) -> None:
     for n, prims in setup.faults.items():
         for p in sorted(prims or ()):
             if p not in fnames:
-                from .scenario import did_you_mean
+                from ..robot.scenario import did_you_mean
                 raise RoarError(f"[robot.faults] {n}: '{p}' is not a function the spec calls"
                                 f"{did_you_mean(p, sorted(fnames))}", setup.pos)
 
 
 def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
     from ..roar.compile import compile_spec
-    from ..roar.parser import load_spec
-    from ..trace.fingerprint import spec_fingerprint
-    from .binding import load_robot_binding
-    from .scenario import load_scenario
+    from ..roar.spec import load_spec
+    from ..roar.sources import spec_fingerprint
+    from ..robot.binding import load_robot_binding
+    from ..robot.scenario import load_scenario
     t0 = time.perf_counter()
     setup = job.robot
     scenario = load_scenario(setup.scenario)
@@ -197,7 +197,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
                 verdicts[p] = check_deadlock(graph, lambda sid: system.final(states[sid]))
             elif p == "livelock":
                 verdicts[p] = check_livelock(spec_checks.progress_graph(graph, ctx_of, explorer.steps.__getitem__)
-                                             if spec_checks.progress else graph)
+                                             if spec_checks.progress else graph, strong=props.strong)
             elif p == "invariant" or p in spec_checks.handles:
                 verdicts[p] = spec_checks.decide(p, graph, ctx_of, (lambda sid: never(states[sid].ctx))
                                                  if never is not None else None, explorer.steps.__getitem__)
@@ -218,7 +218,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
         mark_defaults(props, verdicts)
         return verdicts
 
-    graph, verdicts = _rounds(job, t0, explorer, decide)
+    graph, verdicts = search_rounds(job, t0, explorer, decide)
 
     def describe_edge(e: int) -> dict:
         d = system.describe_step(explorer.steps[e])
@@ -263,7 +263,7 @@ def _robot_bad(node) -> Optional[str]:
 
 def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
     """The abstract model's verdicts next to the robot's, and why they differ."""
-    from ..explore.check import _run_roar_job
+    from .check import run_roar_job
     from ..clf.query import with_big_stack
     ajob = copy.copy(job)
     ajob.robot = None
@@ -276,7 +276,7 @@ def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
     if budget.max_seconds is not None:
         budget.max_seconds = max(1.0, budget.max_seconds - (time.perf_counter() - t0))
     ajob.budget = budget
-    ares = with_big_stack(_run_roar_job, ajob, None)
+    ares = with_big_stack(run_roar_job, ajob, None)
     run.abstract = ares
     seen = run.tree.outcomes_seen
     model = res.roar[0]

@@ -1,8 +1,9 @@
 """``roar-verify``: the command-line front end.
 
-Each part of the toolkit contributes its sub-commands through a
-``register(app)`` function in its own ``commands`` module; this file only
-wires them together and turns user errors into located messages (no traceback).
+The command line is the top layer: it alone imports typer and rich. Each
+module of this package registers the sub-commands of one part of the toolkit
+(``register(app)``) on top of the library; this file only wires them together
+and turns user errors into located messages (no traceback).
 """
 
 from __future__ import annotations
@@ -16,14 +17,14 @@ import typer
 from rich.markup import escape
 
 from .console import make_console
-from .errors import RoarError
+from ..errors import RoarError
 
 # the Typer application; ``cli.app`` (module ``__getattr__`` below) is it with every command registered
 _app = typer.Typer(
     name="roar-verify",
     help="Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
 )
 
@@ -49,7 +50,7 @@ def _root(
     """Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration."""
 
 
-_PARTS = ("clf", "roar", "robot", "explore", "tca")  # the order commands are listed in
+_PARTS = ("clf", "run", "robot", "check", "tca")  # the order commands are listed in
 _registered: list[str] = []
 
 
@@ -61,7 +62,7 @@ def _register(parts=_PARTS) -> None:
     for part in _PARTS:
         if part in parts and part not in _registered:
             _registered.append(part)
-            importlib.import_module(f".{part}.commands", __package__).register(_app)
+            importlib.import_module(f".{part}", __package__).register(_app)
 
 
 def _register_all() -> None:
@@ -90,13 +91,13 @@ def main(argv: list[str] | None = None) -> None:
     args = list(sys.argv[1:] if argv is None else argv)
     try:
         if args[:1] == ["clf"]:  # the CLF command without Typer's start-up, when its options allow
-            from .clf.commands import fast_args, run_clf
+            from .clf import fast_args, run_clf
             opts = fast_args(args[1:])
             if opts is not None:
                 run_clf(**opts)
                 sys.exit(0)
         _register_for(args)
-        _app(args=argv, standalone_mode=True)
+        _app(args=argv, standalone_mode=True, prog_name="roar-verify")
     except RoarError as exc:
         err_console.print(f"[bold red]error:[/] {escape(exc.format())}", markup=True, soft_wrap=True)
         sys.exit(2)

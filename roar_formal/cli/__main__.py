@@ -1,0 +1,5 @@
+"""``python -m roar_formal.cli``: the same as ``roar-verify``."""
+
+from . import main
+
+main()

@@ -1,0 +1,165 @@
+"""Replaying recorded steps on a CLF program, one engine step at a time.
+
+Each recorded step must be an enabled step of the current state (same rule,
+same facts consumed and produced, compared as printed multisets, fresh names
+up to a consistent renaming); the replay applies it with the engine's general
+driver. A counterexample found by any backend therefore doubles as an
+independent check: it must replay on the plain engine. A lasso's cycle must
+come back to the state where it started.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+from ..clf.context import Context
+from ..clf.program import Program
+from ..clf.query import show_context
+from ..clf.signature import ExecDirective
+from ..clf.state import canonical_key
+from ..errors import Pos, RoarError
+from ..trace.fingerprint import shown
+from .system import ClfSystem, Options
+
+__all__ = ["ReplayResult", "replay_steps", "start_index"]
+
+
+@dataclass
+class ReplayResult:
+    steps: int
+    states: list[Context]
+    cycle_closes: Optional[bool]  # None when the trace is not a lasso
+    notes: list[str] = field(default_factory=list)  # e.g. no fingerprint recorded, or replayed despite one
+    engine_steps: list = field(default_factory=list, repr=False)  # the engine's steps, in order
+    records: list[dict] = field(default_factory=list, repr=False)  # each step as the engine took it
+    system: Optional[ClfSystem] = field(default=None, repr=False)   # the system replayed on
+
+
+_PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
+
+
+def _name(value) -> str:
+    """A step number or rule name read from a trace: as is when plain, else quoted."""
+    text = str(value) if isinstance(value, int) and not isinstance(value, bool) else value
+    return text if isinstance(text, str) and _PLAIN.fullmatch(text) else shown(value)
+
+
+def start_index(path, header: dict) -> int:
+    """The header's ``start``: which ``#exec`` directive of the model the trace starts from."""
+    start = header.get("start", 1)
+    if isinstance(start, bool) or not isinstance(start, int) or start < 1:
+        raise RoarError(f'expected "start" in the trace header to be a whole number from 1, not {shown(start)}',
+                        Pos(str(path), 1, 1))
+    return start
+
+
+def replay_steps(path, program: Program, start: int, steps: list[dict],
+                 on_step: Optional[Callable[[int, dict, Context], None]] = None,
+                 notes: Optional[list[str]] = None,
+                 make_system: Optional[Callable[[Program, Context], ClfSystem]] = None) -> ReplayResult:
+    """Replay the recorded ``steps`` of the trace at ``path`` on ``program`` from its
+    ``start``-th ``#exec`` directive. ``on_step(i, record, state)`` sees each step as the engine
+    took it (rule, group, consumed, produced come from the engine, not from the file).
+    ``make_system`` builds the system to step (a front end's, with its monitors); by default the
+    engine's plain :class:`ClfSystem`."""
+    notes = notes if notes is not None else []
+    execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
+    if start > len(execs):
+        raise RoarError(f"{path}: start #{start} but the model has {len(execs)} #exec directive(s)")
+    begin = program.start_context(execs[start - 1].start)
+    system = make_system(program, begin) if make_system is not None else ClfSystem(program, begin, Options())
+    state = system.initial()
+    states = [state]
+    taken_steps: list = []
+    records: list[dict] = []
+    loop_start: Optional[Context] = None
+    names: dict = {}  # fresh name in the trace -> fresh name in this replay (a bijection)
+    for rec in steps:
+        if rec.get("loop") and loop_start is None:
+            loop_start = state
+        want = (rec.get("consumed", []), rec.get("produced", []))
+        if not all(isinstance(w, list) and all(isinstance(x, str) for x in w) for w in want):
+            raise RoarError(f"{path}: step {_name(rec.get('step'))}: \"consumed\" and \"produced\" must be "
+                            "lists of facts (strings)")
+        nxt = None
+        for succ in system.successors(state):
+            if succ.label != rec.get("rule"):
+                continue
+            d = system.describe_step(succ.step)
+            m = _match_renaming(want, (d["consumed"], d["produced"]), names)
+            if m is not None:
+                names = m
+                nxt = succ
+                break
+        if nxt is None:
+            enabled = sorted({s.label for s in system.successors(state)})
+            raise RoarError(
+                f"{path}: step {_name(rec.get('step'))} ({_name(rec.get('rule'))}) cannot be replayed: "
+                "no such enabled step",
+                None, [f"enabled rules here: {', '.join(enabled) or 'none (quiescent)'}",
+                       "state: " + "; ".join(show_context(state))])
+        state = nxt.state
+        states.append(state)
+        taken_steps.append(nxt.step)
+        d = system.describe_step(nxt.step)
+        taken = {"step": len(states) - 1, "rule": nxt.label, "group": nxt.group,
+                 "consumed": d["consumed"], "produced": d["produced"], "loop": bool(rec.get("loop"))}
+        records.append(taken)
+        if on_step is not None:
+            on_step(len(states) - 1, taken, state)
+    closes = None
+    if loop_start is not None:
+        closes = canonical_key(loop_start) == canonical_key(state)
+        if not closes:
+            raise RoarError(f"{path}: the lasso's cycle does not return to the state where it started")
+    return ReplayResult(len(steps), states, closes, notes, taken_steps, records, system)
+
+
+_FRESH = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")
+
+
+def _match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
+    """Do the recorded facts equal the replayed ones up to a consistent renaming of fresh
+    names (``hint#id``)? Returns the extended renaming, or None."""
+    for w, g in zip(want, got):
+        if len(w) != len(g):
+            return None
+    ren = dict(names)
+    used = set(ren.values())
+
+    def shape(text: str) -> str:
+        return _FRESH.sub("#", text)
+
+    def assign(w_lines: list, g_lines: list) -> bool:
+        if not w_lines:
+            return True
+        w = w_lines[0]
+        for k, g in enumerate(g_lines):
+            if shape(g) != shape(w):
+                continue
+            wn, gn = _FRESH.findall(w), _FRESH.findall(g)
+            added = []
+            ok = True
+            for a, b in zip(wn, gn):
+                if a in ren:
+                    ok = ren[a] == b
+                elif b in used:
+                    ok = False
+                else:
+                    ren[a] = b
+                    used.add(b)
+                    added.append(a)
+                if not ok:
+                    break
+            if ok and assign(w_lines[1:], g_lines[:k] + g_lines[k + 1:]):
+                return True
+            for a in added:
+                used.discard(ren.pop(a))
+        return False
+
+    for w, g in zip(want, got):
+        if not assign(list(w), list(g)):
+            return None
+    return ren
