@@ -342,7 +342,7 @@ def test_malformed(entry):
 # -- robustness: any well-formed spec gets located CheckErrors, never a crash -------------------
 
 try:  # the expression and statement strategies of the parser tests
-    from tests.roar.test_spec_parser import EXPRS, STMTS
+    from .test_spec_parser import EXPRS, STMTS
 except ImportError:  # pragma: no cover - tests run as top-level modules
     from test_spec_parser import EXPRS, STMTS
 
