@@ -160,6 +160,8 @@ def register(app: typer.Typer) -> None:
         png: Optional[Path] = typer.Option(None, "--png", help="Draw the trace's message sequence chart here (PNG); "
                                            "with --on-robot, the robot's run."),
         svg: Optional[Path] = typer.Option(None, "--svg", help="Draw the trace's message sequence chart here (SVG)."),
+        dot: Optional[Path] = typer.Option(None, "--dot", help="Write the trace's task tree here (DOT), as "
+                                           "tca-check reads it."),
         functional: Optional[Path] = typer.Option(
             None, "--functional", help="With a spec: this functional-layer module instead of the one next to it."),
         force: bool = typer.Option(False, "--force",
@@ -189,9 +191,16 @@ def register(app: typer.Typer) -> None:
         from ..verify.replay import replay_trace
         from ..verify.report import replay_report, replay_state_lines, replay_step_lines
 
-        for path, option in ((png, "--png"), (svg, "--svg")):
+        for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
             if path is not None:
                 check_output_file(path, option, [trace] + ([model] if model is not None else []))
+        if dot is not None:   # a trace with nothing to draw is refused before the work
+            from ..tca.roar_runs import task_tree_events
+            from ..tca.tree_dot import task_tree_dot
+            tree_events = task_tree_events(head, read_trace(trace)[1], str(trace))
+            if not tree_events:
+                raise RoarError(f"--dot {dot}: the trace holds no task-tree message (no request, no primitive "
+                                "call): a task tree is drawn from a trace of a ROAR spec")
         console = make_console()
         rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
         for note in rep.result.notes:
@@ -213,6 +222,10 @@ def register(app: typer.Typer) -> None:
         for path in write_chart(replay_report(rep), f"{Path(trace).name}: replay of the {what} "
                                 f"({len(rep.steps)} steps)", f"the trace {trace}", png, svg):
             console.print(f"chart written to {path}")
+        if dot is not None:
+            from ..trace.format import write_atomic
+            write_atomic(dot, task_tree_dot(tree_events, f"{Path(trace).name}: {what}"))
+            console.print(f"task tree written to {dot}")
         if rep.confirmed is False:
             console.print(f"NOT CONFIRMED: {rep.confirmation}", style="red")
             raise typer.Exit(1)

@@ -160,3 +160,22 @@ def test_run_draws_its_chart_and_never_overwrites_an_input(tmp_path, roar_cli):
     code, _out, err = roar_cli("run", spec, "-r", "arm::started == true", "--png", spec)
     assert code == 2 and "is an input of this command; not overwritten" in err
     assert spec.read_bytes() == before
+
+
+def test_replay_writes_the_task_tree_of_a_counterexample(tmp_path, roar_cli):
+    """replay --dot: the counterexample's task tree, with the SeqAch edge it breaks; a trace with
+    no task-tree message (a .clf model's) is refused before the replay."""
+    import re
+    _res, trace = counterexample("ordered_pick.toml", tmp_path)
+    code, out, _err = roar_cli("replay", trace, "--model", FAULTY / "ordered_pick.roar",
+                               "--functional", FAULTY / "reliable_tools.py", "--dot", tmp_path / "t.dot")
+    assert code == 0 and f"task tree written to {tmp_path / 't.dot'}" in out
+    dot = (tmp_path / "t.dot").read_text()
+    assert re.search(r'^  "R1" -> "R3" \[style=dashed.*label="SeqAch"\];$', dot, re.M)
+    assert set(re.findall(r'^  "(\w+)" \[shape=', dot, re.M)) == {"R0", "R1", "R2", "R3", "C1", "C2"}
+    res = run_job(load_job(CHECKER / "philosophers_dl5.toml"))
+    clf_trace = save_counterexample(res, "deadlock", tmp_path)
+    code, out, err = roar_cli("replay", clf_trace, "--model", ROOT / "models" / "philosophers" / "dl.clf",
+                              "--dot", tmp_path / "c.dot")
+    assert code == 2 and "holds no task-tree message" in err and "replayed" not in out
+    assert not (tmp_path / "c.dot").exists()
