@@ -7,7 +7,11 @@ Measured, medians over the repeats:
   * the Ambler model's claims (ordering claims and the metric plan-ahead bound);
   * checking a trace of a 1,011-message Ambler walk (10 arcs of 25 steps)
     against the axioms, with the goals' achievement intervals in the trace and
-    without them (then Z3 decides their existence); target under 10 s.
+    without them (then Z3 decides their existence); target under 10 s;
+  * the peak memory of ``tca-check`` on 4,000-message traces (a deep chain of
+    goals with contradicting declarations, the shape that once made the
+    solver's core minimisation quadratic, and an Ambler walk), each in a fresh
+    process (VmHWM); target far within 2 GB.
 Baselines from the same run: an empty Z3 check for the obligations, and just
 reading the trace and building its task tree for the trace check.
 
@@ -97,10 +101,67 @@ def _trace_checks(repeats: int, quick: bool) -> list[dict]:
     return rows
 
 
+PEAK = """
+import json, re, sys, time
+from pathlib import Path
+from roar_formal.tca.check import check_trace
+t = time.perf_counter()
+r = check_trace(sys.argv[1])
+hwm = int(re.search(r"VmHWM:\\s+(\\d+) kB", Path("/proc/self/status").read_text()).group(1))
+print(json.dumps({"messages": len(r.tree.messages), "violations": len(r.violations),
+                  "seconds": time.perf_counter() - t, "peak_mb": hwm / 1024}))
+"""
+
+
+def _deep_chain(n: int, declarations: int, seed: int = 0) -> str:
+    """A chain of n goals, each handled inside its parent, with random (mostly contradicting)
+    declarations between them."""
+    import json
+    rng = random.Random(seed)
+    out = []
+    for i in range(n):
+        out.append({"event": "constraint_sent", "time": 2 * i, "msg": f"m{i}", "kind": "goal",
+                    "parent": f"m{i - 1}" if i else None})
+        out.append({"event": "started", "time": 2 * i + 1, "msg": f"m{i}"})
+    for i in reversed(range(n)):
+        out.append({"event": "ended", "time": 4 * n - i, "msg": f"m{i}"})
+    for _ in range(declarations):
+        a, b = rng.randrange(n), rng.randrange(n)
+        out.append({"event": rng.choice(["seq_ach", "delay_planning", "precedes"]), "m1": f"m{a}", "m2": f"m{b}"})
+    return "".join(json.dumps(r) + "\n" for r in out)
+
+
+def _peaks(quick: bool) -> list[dict]:
+    """tca-check's peak memory on 4,000-message traces, each in a fresh process."""
+    import json
+    import subprocess
+    if not Path("/proc/self/status").exists():
+        return []
+    n = 400 if quick else 4000
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        chain = Path(tmp) / "chain.jsonl"
+        chain.write_text(_deep_chain(n, 50))
+        walk = Path(tmp) / "walk.jsonl"
+        inst = unroll(load_model(AMBLER), {"arcs": 2, "steps": 50 if quick else 500})
+        walk.write_text(dumps(simulate(inst, sample_timing(inst, random.Random(5)), True)), encoding="utf-8")
+        for shape, path in (("deep chain", chain), ("Ambler walk", walk)):
+            out = subprocess.run([sys.executable, "-c", PEAK, str(path)], capture_output=True, text=True,
+                                 timeout=1200, env={**__import__("os").environ,
+                                                    "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+            if out.returncode != 0:
+                raise RuntimeError(out.stderr)
+            rows.append({"shape": shape, **json.loads(out.stdout)})
+    return rows
+
+
 def run(repeats: int = 5, quick: bool = False) -> dict:
     baseline, _ = _median(_empty_check, max(repeats, 5))
     obligations = _obligations(1 if quick else repeats)
     traces = _trace_checks(1 if quick else repeats, quick)
+    peaks = _peaks(quick)
+    pk_rows = [[r["shape"], r["messages"], r["violations"], f"{r['seconds']:.2f}", f"{r['peak_mb']:.0f}",
+                "ok" if r["peak_mb"] < 2048 else "MISSED"] for r in peaks]
     ob_rows = [[r["obligation"], r["expected"], r["result"], f"{r['seconds']:.3f}",
                 f"{r['seconds'] / baseline:.0f}",
                 "ok" if r["seconds"] < OBLIGATION_TARGET_S and r["result"] == r["expected"] else "MISSED"]
@@ -115,12 +176,15 @@ def run(repeats: int = 5, quick: bool = False) -> dict:
         "baseline": f"empty Z3 check {baseline * 1e3:.2f} ms; reading the trace (same run)",
         "obligations": obligations,
         "traces": traces,
+        "peaks": peaks,
         "tables": [
             {"title": "obligations (median seconds; x = over an empty Z3 check)",
              "columns": ["obligation", "expected", "result", "s", "x empty", "target < 1 s"], "rows": ob_rows},
             {"title": "trace check of an Ambler walk (median seconds)",
              "columns": ["messages", "ach. in trace", "violations", "instances", "by Z3", "read s", "check s",
                          "x read", "target < 10 s"], "rows": tr_rows},
+            {"title": "peak memory of tca-check (a fresh process each)",
+             "columns": ["trace", "messages", "violations", "s", "peak MB", "target < 2 GB"], "rows": pk_rows},
         ],
         "notes": [f"medians of {repeats} runs" + (" (quick: one run, small trace)" if quick else ""),
                   "check includes reading the file; 'by Z3' counts instances left to the solver"],

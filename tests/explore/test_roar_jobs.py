@@ -21,6 +21,7 @@ from collections import deque
 from pathlib import Path
 
 import pytest
+from conftest import checker_result
 
 from roar_formal.cli import main
 from roar_formal.clf.query import with_big_stack
@@ -45,14 +46,9 @@ def _is_spec_job(path: Path) -> bool:
 
 SPEC_JOBS = sorted(p.name for p in CHECKER.glob("*.toml") if _is_spec_job(p))
 
-_RESULTS: dict = {}
-
-
 def job_result(name: str):
-    """The result of ``checker/<name>``, run once per test session."""
-    if name not in _RESULTS:
-        _RESULTS[name] = run_job(load_job(CHECKER / name))
-    return _RESULTS[name]
+    """The result of ``checker/<name>``, run once per test session (shared: tests/conftest.py)."""
+    return checker_result(name)
 
 
 def big(fn, *args):

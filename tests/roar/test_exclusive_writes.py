@@ -3,21 +3,15 @@ after a conflict, h_cwait, has written nothing: counting it was a false alarm on
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from roar_formal.clf.terms import Const, Root
-from roar_formal.verify.check import run_job
-from roar_formal.verify.jobs import job_for_model
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def _name(t):
     return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
 
 
-def test_a_request_waiting_after_a_conflict_writes_nothing():
-    res = run_job(job_for_model(ROOT / "models" / "conflict.roar", "mission::done == true", ["exclusive-writes"]))
+def test_a_request_waiting_after_a_conflict_writes_nothing(checker_job):
+    res = checker_job("conflict.toml")   # checker/conflict.toml checks exclusive writes too
     assert res.graph.complete
     assert res.verdicts["exclusive-writes"].status == "holds", res.verdicts["exclusive-writes"].message
     # independently, on the explored states: while a request waits after its conflict, the

@@ -331,11 +331,10 @@ def test_a_robot_step_the_model_does_not_allow_is_rejected_with_both_sides(tmp_p
 # ---------------------------------------------------------------- a counterexample on the robot
 
 
-def test_the_conflict_livelock_happens_on_the_robot_only_with_the_cable(tmp_path):
-    from roar_formal.verify.check import run_job, save_counterexample
-    from roar_formal.verify.jobs import load_job
+def test_the_conflict_livelock_happens_on_the_robot_only_with_the_cable(tmp_path, checker_job):
+    from roar_formal.verify.check import save_counterexample
 
-    res = run_job(load_job(ROOT / "checker" / "conflict.toml"))
+    res = checker_job("conflict.toml")
     assert res.verdicts["livelock"].status == "violated"
     trace = save_counterexample(res, "livelock", tmp_path)
     _header, records = read_trace(trace)

@@ -9,7 +9,6 @@ import os
 import random
 import subprocess
 import sys
-import textwrap
 from fractions import Fraction
 from pathlib import Path
 
@@ -132,41 +131,25 @@ def test_long_conflicts_are_found_and_reported_up_to_the_limit(tmp_path):
     assert all("cannot all hold together" in v.explanation for v in together)
 
 
-# the peak is VmHWM, this process's own (ru_maxrss would count the parent's size at the fork)
-PEAK = textwrap.dedent("""
-    import json, re, sys, time
-    from pathlib import Path
-    from roar_formal.tca.check import check_trace
-    t = time.perf_counter()
-    r = check_trace(sys.argv[1])
-    hwm = int(re.search(r"VmHWM:\\s+(\\d+) kB", Path("/proc/self/status").read_text()).group(1))
-    print(json.dumps({"messages": len(r.tree.messages), "violations": len(r.violations), "ok": r.ok,
-                      "seconds": time.perf_counter() - t, "peak_mb": hwm / 1024}))
-""")
-
-
-@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the peak from /proc")
 @pytest.mark.parametrize("shape", ["deep-chain", "ambler"])
-def test_tca_check_on_4000_messages_stays_far_within_2_gb(tmp_path, shape):
+def test_tca_check_on_1000_messages(tmp_path, shape):
     """Before the difference solver, the deep chain took 200 s and 616 MB at 2,000 messages
-    (quadratic: the SMT solver minimised cores as long as the chain)."""
+    (quadratic: the SMT solver minimised cores as long as the chain). The 4,000-message peak
+    memory (target: far within 2 GB) is measured by bench/b5_tca.py, in a fresh process."""
     path = tmp_path / f"{shape}.jsonl"
     if shape == "deep-chain":
-        path.write_text(_deep_chain(4000, 50))
+        path.write_text(_deep_chain(1000, 50))
     else:
         result = subprocess.run([sys.executable, "-m", "roar_formal.cli", "tca-simulate", str(AMBLER),
-                                 "--size", "arcs=2", "--size", "steps=500", "--out", str(path)],
+                                 "--size", "arcs=2", "--size", "steps=125", "--out", str(path)],
                                 capture_output=True, text=True, timeout=300)
         assert result.returncode == 0, result.stderr
-    out = subprocess.run([sys.executable, "-c", PEAK, str(path)], capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr
-    got = json.loads(out.stdout)
-    assert got["messages"] >= 4000
-    assert got["peak_mb"] < 600, got  # the bound the issue asks for is 2 GB; today about 110 MB
+    report = check_trace(path)
+    assert len(report.tree.messages) >= 1000
     if shape == "ambler":
-        assert got["ok"], got
+        assert report.ok, [v.explanation for v in report.violations]
     else:
-        assert got["violations"] >= MAX_CORES
+        assert len(report.violations) >= MAX_CORES
 
 
 # ------------------------------------------------------------------ numbers in traces
