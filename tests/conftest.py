@@ -27,24 +27,8 @@ def roar_cli(capsys, monkeypatch):
     return lambda *argv: run_roar_verify(capsys, *argv)
 
 
-_CHECKER_RESULTS: dict = {}
-
-
-def checker_result(name: str):
-    """The result of the bundled job ``checker/<name>``, explored once per test session and
-    shared by every test that reads it (the bundled networks are the suite's slowest inputs)."""
-    if name not in _CHECKER_RESULTS:
-        from pathlib import Path
-
-        from roar_formal.clf.query import with_big_stack
-        from roar_formal.verify.check import run_job
-        from roar_formal.verify.jobs import load_job
-        path = Path(__file__).resolve().parents[1] / "checker" / name
-        _CHECKER_RESULTS[name] = with_big_stack(lambda: run_job(load_job(path)))
-    return _CHECKER_RESULTS[name]
-
-
 @pytest.fixture
 def checker_job():
-    """``checker_job(name)``: the shared result of ``checker/<name>`` (see :func:`checker_result`)."""
+    """``checker_job(name)``: the shared result of ``checker/<name>`` (tests/checker_cache.py)."""
+    from checker_cache import checker_result
     return checker_result

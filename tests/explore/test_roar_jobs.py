@@ -21,7 +21,7 @@ from collections import deque
 from pathlib import Path
 
 import pytest
-from conftest import checker_result
+from checker_cache import checker_result
 
 from roar_formal.cli import main
 from roar_formal.clf.query import with_big_stack
@@ -47,7 +47,7 @@ def _is_spec_job(path: Path) -> bool:
 SPEC_JOBS = sorted(p.name for p in CHECKER.glob("*.toml") if _is_spec_job(p))
 
 def job_result(name: str):
-    """The result of ``checker/<name>``, run once per test session (shared: tests/conftest.py)."""
+    """The result of ``checker/<name>``, run once per test session (shared: tests/checker_cache.py)."""
     return checker_result(name)
 
 
