@@ -4,6 +4,7 @@ name: test modules import it directly (``conftest`` is not unique across the tes
 
 from __future__ import annotations
 
+import gc
 from pathlib import Path
 
 _CHECKER_RESULTS: dict = {}
@@ -18,6 +19,10 @@ def checker_result(name: str):
         from roar_formal.verify.jobs import load_job
         path = Path(__file__).resolve().parents[1] / "checker" / name
         _CHECKER_RESULTS[name] = with_big_stack(lambda: run_job(load_job(path)))
+        # kept for the session: out of the cyclic collector's sight, so that the millions of
+        # objects of an explored network do not slow every later collection
+        gc.collect()
+        gc.freeze()
     return _CHECKER_RESULTS[name]
 
 

@@ -105,7 +105,7 @@ def explored(name: str):
 
 
 @pytest.mark.parametrize("name", ["ordered_pick", "ordered_pick_fixed"])
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_the_monitor_and_tca_check_agree_on_every_path(name, data):
     res, model, start, explorer, out, pairs = explored(name)

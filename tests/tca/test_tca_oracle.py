@@ -74,7 +74,7 @@ def _check(records: list[dict]):
     return check_events(parse_events(lines, "random"))
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=90, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(task_trees())
 def test_sequencing_verdict_matches_pairwise_oracle(records):
     report = _check(records)
@@ -82,7 +82,7 @@ def test_sequencing_verdict_matches_pairwise_oracle(records):
     assert found == tca_oracle.sequencing_violations(records)
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=90, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(task_trees())
 def test_overall_verdict_matches_difference_constraint_oracle(records):
     report = _check(records)
