@@ -216,7 +216,7 @@ def programs(draw):
                                                             + [f"!{f} {a}" for f, a in pers]) + ".\n")
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=20, deadline=None)
 @given(programs())
 def test_random_programs_keep_their_deadlocks(src):
     same_deadlocks(src, Budget(max_states=400, max_seconds=2))
@@ -268,7 +268,7 @@ def _violating_keys(ex: Explorer, g, never) -> set:
     return {ex.system.key(ex.states[s]) for s in range(g.n_states) if never(ex.states[s])}
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=20, deadline=None)
 @given(programs(), st.lists(st.tuples(st.sampled_from(["p", "q", "r", "u"]), st.sampled_from(["k0", "k1", "X"])),
                             min_size=1, max_size=2))
 def test_random_programs_keep_their_invariant_verdicts(src, pattern):
@@ -291,7 +291,7 @@ def test_random_programs_keep_their_invariant_verdicts(src, pattern):
     assert bad_red <= bad_full and red.n_states <= full.n_states
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=20, deadline=None)
 @given(programs(), st.sampled_from(["r0", "r1", "r2"]))
 def test_random_programs_keep_their_non_progress_cycles(src, progress):
     """Without fairness a livelock is any cycle without progress; progress steps are visible
