@@ -5,7 +5,7 @@ name: test modules import it directly (``conftest`` is not unique across the tes
 from __future__ import annotations
 
 import gc
-from pathlib import Path
+from repo import ROOT
 
 _CHECKER_RESULTS: dict = {}
 
@@ -17,7 +17,7 @@ def checker_result(name: str):
         from roar_formal.clf.query import with_big_stack
         from roar_formal.verify.check import run_job
         from roar_formal.verify.jobs import load_job
-        path = Path(__file__).resolve().parents[1] / "checker" / name
+        path = ROOT / "checker" / name
         _CHECKER_RESULTS[name] = with_big_stack(lambda: run_job(load_job(path)))
         # kept for the session: out of the cyclic collector's sight, so that the millions of
         # objects of an explored network do not slow every later collection

@@ -14,11 +14,10 @@ from __future__ import annotations
 
 import re
 import shlex
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from repo import ROOT
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 _BLOCK = re.compile(r"<!-- checked(?::\s*exit\s+(\d+))?\s*-->\n```sh\n(.*?)```\n(.*?)```(?:text)?\n(.*?)```", re.S)
 

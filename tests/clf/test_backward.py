@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import itertools
 import re
-from pathlib import Path
 
 import pytest
 
 from roar_formal.clf.program import Program
 from roar_formal.clf.query import run_directives, with_big_stack
+from repo import ROOT
 
-MODELS = Path(__file__).resolve().parents[2] / "models" / "clf"
+MODELS = ROOT / "models" / "clf"
 
 
 def run(name: str | None = None, text: str | None = None, seed: int = 0):

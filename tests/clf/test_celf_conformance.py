@@ -25,6 +25,7 @@ from roar_formal.cli import main
 from roar_formal.cli.clf import celf_category
 from roar_formal.clf.query import run_file, with_big_stack
 from roar_formal.errors import RoarError, UnsupportedError
+from repo import ROOT
 
 HERE = Path(__file__).resolve().parent / "celf_conformance"
 CASES = sorted(HERE.glob("*.clf"))
@@ -115,7 +116,7 @@ def test_library_error_class(path):
 
 # -- the conformance table of docs/clf.md -------------------------------------------
 
-DOCS = Path(__file__).resolve().parents[2] / "docs" / "clf.md"
+DOCS = ROOT / "docs" / "clf.md"
 
 
 def docs_table() -> list[tuple[str, str, list[str]]]:

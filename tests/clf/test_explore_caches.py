@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import random
 from collections import deque
-from pathlib import Path
 
 import pytest
 
@@ -28,8 +27,9 @@ from roar_formal.clf.rules import AFF, LIN, PERS
 from roar_formal.clf.signature import ExecDirective
 from roar_formal.clf.state import canonical_key
 from roar_formal.clf.terms import Const, Param, Root
+from repo import ROOT
 
-MODELS = Path(__file__).resolve().parents[2] / "models" / "clf"
+MODELS = ROOT / "models" / "clf"
 
 
 # ---------------------------------------------------------------- Context.copy

@@ -5,7 +5,6 @@ states whose successors are counted by hand."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
@@ -13,8 +12,9 @@ from roar_formal.clf.program import Program
 from roar_formal.clf.query import run_directives, show_context, with_big_stack
 from roar_formal.clf.rules import PERS
 from roar_formal.clf.terms import Param
+from repo import ROOT
 
-MODELS = Path(__file__).resolve().parents[2] / "models" / "clf"
+MODELS = ROOT / "models" / "clf"
 
 
 def run(name: str | None = None, text: str | None = None, seed: int = 0, fair: bool = False, trace=False):

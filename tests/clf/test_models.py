@@ -9,7 +9,6 @@ from __future__ import annotations
 import collections
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -17,8 +16,9 @@ from roar_formal.clf.program import Program
 from roar_formal.clf.query import run_directives, show_context, with_big_stack
 from roar_formal.cli import main
 from roar_formal.errors import QueryError
+from repo import ROOT
 
-MODELS = Path(__file__).resolve().parents[2] / "models" / "clf"
+MODELS = ROOT / "models" / "clf"
 ALL_MODELS = sorted(MODELS.glob("*.clf"))
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import re
-from pathlib import Path
 
 import pytest
 
@@ -16,7 +15,7 @@ from roar_formal.verify.jobs import load_job
 from roar_formal.verify.pictures import render_chart, sequence_chart, state_graph_dot
 from roar_formal.verify.report import counterexample_report
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 _RESULTS: dict = {}
 
 

@@ -6,11 +6,10 @@ expects nothing of is violated; 4: no violation, but a search ran out of budget 
 
 from __future__ import annotations
 
-from pathlib import Path
 
 from roar_formal.cli import main
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 
 
 def check(capsys, tmp_path, text: str) -> tuple[int, str, str]:

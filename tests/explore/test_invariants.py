@@ -19,7 +19,7 @@ from roar_formal.errors import RoarError
 from roar_formal.verify.check import run_job
 from roar_formal.verify.jobs import load_job
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 
 
 def _job(tmp_path: Path, name: str, target: str, patterns: list[str], expect: str, spec_request=None) -> Path:

@@ -16,7 +16,7 @@ from roar_formal.explore.properties import check_deadlock, check_livelock
 from roar_formal.explore.search import Budget, Explorer
 from roar_formal.explore.system import ClfSystem, Options
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 
 
 def graph(src: str, options: Options, budget: Budget = Budget()):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import importlib.util
 from collections import deque
-from pathlib import Path
 
 import pytest
 
@@ -21,7 +20,7 @@ from roar_formal.explore.properties import check_deadlock, check_livelock
 from roar_formal.explore.search import Explorer
 from roar_formal.explore.system import ClfSystem, Options
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 _spec = importlib.util.spec_from_file_location("phil_gen", ROOT / "models/philosophers/generate.py")
 gen = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(gen)

@@ -17,7 +17,7 @@ from roar_formal.explore.search import Budget, Explorer
 from roar_formal.explore.system import ClfSystem, Options
 from roar_formal.verify.replay import replay
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 
 _spec = importlib.util.spec_from_file_location("phil_gen", ROOT / "models/philosophers/generate.py")
 gen = importlib.util.module_from_spec(_spec)

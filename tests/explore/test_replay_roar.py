@@ -15,7 +15,7 @@ from roar_formal.verify.jobs import load_job
 from roar_formal.verify.replay import replay_trace
 from roar_formal.verify.report import counterexample_report
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 CHECKER = ROOT / "checker"
 FAULTY = ROOT / "models" / "faulty"
 

@@ -35,7 +35,7 @@ from roar_formal.roar.explore import PROGRESS_RULES, RoarSystem, roar_final, seq
 from roar_formal.trace.format import read_trace
 from roar_formal.verify.replay import replay
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 CHECKER = ROOT / "checker"
 FAULTY = ROOT / "models" / "faulty"
 

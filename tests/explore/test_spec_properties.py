@@ -32,7 +32,7 @@ from roar_formal.roar.spec import load_spec
 from roar_formal.roar.props import parse_formula, view_of
 from roar_formal.roar.report import decode_state
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 FAULTY = ROOT / "models" / "faulty"
 CAMERA_RETRY = (FAULTY / "camera_retry.roar", "camera::taken == true")
 CAMERA_BOUNDED = (FAULTY / "camera_bounded.roar", "camera::taken == true")

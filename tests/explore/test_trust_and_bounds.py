@@ -24,7 +24,7 @@ from roar_formal.explore.search import MemoryWatch, current_rss_mb, rss_mb
 from roar_formal.trace.format import read_trace, remove_stale_temporaries, write_atomic
 from roar_formal.verify.replay import replay
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 DL = ROOT / "models" / "philosophers" / "dl.clf"
 MUTUAL = ROOT / "models" / "faulty" / "mutual_make.roar"
 

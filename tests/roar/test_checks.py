@@ -17,7 +17,7 @@ from roar_formal.roar.spec import load_spec
 from roar_formal.roar.parser import parse_constraint, parse_roar
 from roar_formal.roar.pretty import format_expr, format_spec
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 MODELS = ROOT / "models"
 HERE = Path(__file__).parent
 

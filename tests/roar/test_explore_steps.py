@@ -7,7 +7,6 @@ indexes are those of a copy made by re-adding every fact."""
 from __future__ import annotations
 
 from collections import deque
-from pathlib import Path
 
 from roar_formal.clf.forward import multiset_key, enabled_steps, find_matches
 from roar_formal.clf.query import with_big_stack
@@ -16,8 +15,9 @@ from roar_formal.clf.state import canonical_key
 from roar_formal.roar.functional import functional_module, load_registry
 from roar_formal.roar.compile import compile_spec
 from roar_formal.roar.spec import load_spec
+from repo import ROOT
 
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = ROOT / "models"
 
 
 def _reference_steps(program, ctx) -> list:

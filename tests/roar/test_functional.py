@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
@@ -10,8 +9,9 @@ from roar_formal.errors import RoarError
 from roar_formal.roar.functional import (DEFAULT_OUTCOMES, Binding, BindingError, Outcome, Primitive, Registry)
 from roar_formal.roar.spec import load_spec
 from roar_formal.roar.parser import parse_roar
+from repo import ROOT
 
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = ROOT / "models"
 
 
 def test_register_plain_and_decorator():

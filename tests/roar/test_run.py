@@ -23,8 +23,9 @@ from roar_formal.roar.functional import functional_module, load_registry
 from roar_formal.roar.compile import compile_spec
 from roar_formal.roar.spec import load_spec
 from roar_formal.roar.run import parse_fault, run_model
+from repo import ROOT
 
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = ROOT / "models"
 
 DEMO = (MODELS / "demo_loco", "demo_loco::pos == demo_loco::goal where demo_loco::goal == 5")
 SPA = (MODELS / "spa_loop.roar", "exec::arrived == true where exec::goal == 7")

@@ -16,7 +16,7 @@ from roar_formal.roar.parser import hyper_compat_warnings, parse_constraint, par
 from roar_formal.roar.spec import load_spec
 from roar_formal.roar.pretty import format_expr, format_spec, format_stmt, hyper_files
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 MODELS = ROOT / "models"
 DATA = Path(__file__).parent / "data"
 ROAR_MODELS = ["spa_loop.roar", "mana_nav.roar", "conflict.roar"]
@@ -566,7 +566,7 @@ def test_garbage_wrapped_in_an_agent():
 def test_a_number_too_long_to_read_is_a_located_error(tmp_path):
     """Found by fuzzing: a 5,000-digit literal crashed the int conversion."""
     from roar_formal.roar.parser import parse_roar
-    src = (Path(__file__).resolve().parents[2] / "models" / "faulty" / "ordered_pick.roar").read_text()
+    src = (ROOT / "models" / "faulty" / "ordered_pick.roar").read_text()
     i = src.index("set done true")
     bad = src[:i] + "set done " + "9" * 5000 + src[i + len("set done true"):]
     line = src[:i].count("\n") + 1

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import re
-from pathlib import Path
 
 import pytest
 
@@ -16,7 +15,7 @@ from roar_formal.robot.setup import prepare
 from roar_formal.robot.sim import simulate
 from roar_formal.trace.format import read_trace
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 MODELS = ROOT / "models"
 SCEN = MODELS / "scenarios"
 DOOR = MODELS / "door_nav.roar"

@@ -6,7 +6,6 @@ import functools
 import re
 import math
 import pickle
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
@@ -15,8 +14,9 @@ from roar_formal.errors import RoarError
 from roar_formal.robot.observe import OBSERVABLES, RobotCondition, check_condition, parse_condition
 from roar_formal.robot.robot import Robot
 from roar_formal.robot.scenario import load_scenario
+from repo import ROOT
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "models" / "scenarios"
+SCENARIOS = ROOT / "models" / "scenarios"
 
 
 @functools.cache

@@ -23,7 +23,7 @@ from roar_formal.verify.jobs import load_job
 from roar_formal.robot.explore import Abstraction, robot_key
 from roar_formal.trace.format import read_trace
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 DATA = Path(__file__).parent / "data" / "explore"
 DOOR = ROOT / "checker" / "robot" / "door_nav.toml"
 STUCK = ROOT / "checker" / "robot" / "door_nav_stuck.toml"

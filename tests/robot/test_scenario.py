@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pytest
 
 from roar_formal.errors import RoarError
 from roar_formal.robot.scenario import FAULT_KINDS, load_scenario, parse_scenario
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "models" / "scenarios"
+SCENARIOS = ROOT / "models" / "scenarios"
 HEAD = 'name = "t"\nbounds = [0, 0, 10, 5]\n'
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import math
 import re
-from pathlib import Path
 
 import pytest
 
@@ -29,7 +28,7 @@ from roar_formal.roar.compile import compile_spec
 from roar_formal.roar.run import parse_fault
 from roar_formal.trace.format import read_trace
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 MODELS = ROOT / "models"
 SCEN = MODELS / "scenarios"
 DOOR_REQ = "base::arrived == true where base::gx == 9.0 && base::gy == 3.0"

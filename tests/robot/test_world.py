@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import math
 import pickle
-from pathlib import Path
 
 import pytest
 
 from roar_formal.errors import RoarError
 from roar_formal.robot.scenario import load_scenario, parse_scenario
 from roar_formal.robot.world import World
+from repo import ROOT
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "models" / "scenarios"
+SCENARIOS = ROOT / "models" / "scenarios"
 
 ROOM = """
 name = "room"
@@ -59,7 +59,7 @@ to = [6, 6]
 [[door]]
 name = "d1"
 from = [6, 2.4]
-to = [6, 3.6]
+from repo import ROOT
 [robot]
 start = [1.5, 3, 0]
 [faults.door_closes]

@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
@@ -21,7 +20,7 @@ from roar_formal.roar.explore import path_events
 from roar_formal.tca.check import check_events, check_trace
 from roar_formal.tca.roar_runs import task_tree_events
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 MODELS = ROOT / "models"
 
 RUNS = [

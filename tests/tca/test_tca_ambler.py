@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import random
 from fractions import Fraction
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -21,7 +20,7 @@ from roar_formal.tca.schedule import Schedule, Timing, sample_timing, simulate
 from roar_formal.tca.unroll import unroll
 from roar_formal.tca.window import claim_obligation, model_obligations
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 AMBLER = ROOT / "models" / "ambler" / "ambler.toml"
 
 

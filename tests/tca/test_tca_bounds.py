@@ -10,7 +10,6 @@ import random
 import subprocess
 import sys
 from fractions import Fraction
-from pathlib import Path
 
 import pytest
 import typer
@@ -25,7 +24,7 @@ from roar_formal.tca.model import load_model
 from roar_formal.tca.trace_events import parse_events
 from roar_formal.tca.unroll import MAX_MESSAGES, unroll
 
-ROOT = Path(__file__).resolve().parents[2]
+from repo import ROOT
 AMBLER = ROOT / "models" / "ambler" / "ambler.toml"
 
 

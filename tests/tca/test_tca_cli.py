@@ -10,9 +10,10 @@ from typer.testing import CliRunner
 
 from roar_formal.errors import RoarError
 from roar_formal.cli.tca import register
+from repo import ROOT
 
 TRACES = Path(__file__).parent / "traces"
-AMBLER = Path(__file__).resolve().parents[2] / "models" / "ambler" / "ambler.toml"
+AMBLER = ROOT / "models" / "ambler" / "ambler.toml"
 
 
 @pytest.fixture(scope="module")

@@ -4,13 +4,14 @@ import re
 from pathlib import Path
 
 import pytest
+from repo import ROOT
 
 pytest_plugins = ["pytester"]
 
 
 @pytest.fixture(scope="session")
 def root() -> Path:
-    return Path(__file__).resolve().parents[2]
+    return ROOT
 
 
 @pytest.fixture(scope="session")

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
 import roar_formal
 from roar_formal.errors import RoarError
+from repo import ROOT
 
-DATA = Path(__file__).resolve().parents[1] / "robot" / "data" / "explore"
+DATA = ROOT / "tests" / "robot" / "data" / "explore"
 
 
 def test_explore_on_robot_finds_the_contact_and_passes_the_fixed_twin():
