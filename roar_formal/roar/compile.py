@@ -42,6 +42,7 @@ from .spec import checked_spec
 from ..clf.program import Program
 from .framework import extend_framework, extend_signature, framework_text, with_framework
 from .functional import DEFAULT_OUTCOMES, Outcome, Registry
+from .incompatible import incompatible_tasks
 from .pretty import format_expr, format_stmt
 
 __all__ = ["compile_spec", "CompiledModel", "Site"]
@@ -115,6 +116,7 @@ class CompiledModel:
     spec_text: str = ""              # the generated declarations alone (added to the framework's signature)
     call_sites: dict[str, list] = field(default_factory=dict)   # function const -> positions of its calls
     candidates: dict[str, list] = field(default_factory=dict)   # cst -> (agent, task) the logic layer proved
+    incompatible: dict[tuple[str, str], list[str]] = field(default_factory=dict)  # (agent, task) -> tasks it masks (4.3)
 
     def program(self):
         """The CLF program (cached)."""
@@ -695,7 +697,8 @@ class _Compiler:
                     m.recipes[rc] = (ag.name, t.name, r.name)
                     o.append(f"{rc} : recipe.")
         hdr = len(o)   # constraint declarations go here (they are known at the end)
-        # tasks: pre/post (symbolic), recipes
+        # tasks: pre/post (symbolic), incompatible tasks (4.3), recipes
+        incompatible = incompatible_tasks(self.checked)
         for ag in spec.agents:
             for t in ag.tasks:
                 tc = self.task_c(ag.name, t.name)
@@ -707,6 +710,11 @@ class _Compiler:
                     self.predicates[p] = ag.name
                     self.predicate_exprs.setdefault(p, (ag, q))
                 o.append(f"tpre_{tc} : tpre {tc} {self._list([f'(vpexp {p})' for p in pres])}.")
+                others = incompatible.get((ag.name, t.name), [])
+                if others:
+                    m.incompatible[(ag.name, t.name)] = list(others)
+                o.append(f"incompat_{tc} : incompat {tc} "
+                         f"{self._list([f'(vtsk {self.task_c(ag.name, u)})' for u in others])}.")
                 for i, e in enumerate(t.post):
                     for conj in a.conjuncts(e):
                         o.append(f"post_{tc}_{i}_{len(o)} : post {tc} (fatom {self.pexp(self._qualify(conj, ag.name), pcx)}).")
@@ -826,11 +834,11 @@ class _Compiler:
         wl = self._list([f"(vpair (vcell {w}) {wvars[w]})" for w in where])
         self.rules.append(
             f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide {pred_p} {snap(newv)} F MT D -o !commit D R M M1\n"
+            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D -o !commit D R M M1\n"
             f"  -o {{hs R (h_dec D) EC F Pl (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide {pred_p} {snap(vars_)} F MT D -o !commit D R M M1\n"
+            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D -o !commit D R M M1\n"
             f"  -o {{hs R (h_dec D) EC F Pl vnone * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"

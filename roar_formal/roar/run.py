@@ -597,8 +597,12 @@ def describe_ec(t, m: CompiledModel) -> list[str]:
 
 def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, registry: Optional[Registry] = None,
               faults: Optional[list[Fault]] = None, fair: bool = False,
-              on_event: Optional[Callable[[RoarEvent], None]] = None) -> RunResult:
-    """Run the model to quiescence (or ``max_steps`` CLF steps); the functional layer answers pending calls."""
+              on_event: Optional[Callable[[RoarEvent], None]] = None,
+              on_state: Optional[Callable[[object], None]] = None) -> RunResult:
+    """Run the model to quiescence (or ``max_steps`` CLF steps); the functional layer answers pending calls.
+
+    ``on_event`` sees each ROAR event as it happens; ``on_state`` sees the CLF context after each
+    step (for checking a state invariant along the run; it must not change it)."""
     prog = model.program()
     start = next(d for d in prog.sig.directives if hasattr(d, "start"))
     ctx = prog.start_context(start.start)
@@ -617,6 +621,8 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             events.append(ev)
             if on_event:
                 on_event(ev)
+        if on_state:
+            on_state(_ctx)
 
     for _mode, f, _n in ctx.facts():
         if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.RQ:
