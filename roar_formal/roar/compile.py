@@ -653,11 +653,43 @@ class _Compiler:
         o.append(f"cdom_{rc} : cdom {rc} {self._list([f'(vcst {c})' for c in dom])}.")
         o.append(f"rinfo_{rc} : rinfo {rc} {r.preference()} {len(r.pre)} {len(r.constraint_domain(ag.name))}.")
         # alternatives for the calling-context search (5.3): another recipe of the
-        # task whose constraint domain avoids the constraint
+        # task whose constraint domain avoids the constraint, and that is acceptable now
         for c in dom:
             others = [q for q in t.recipes if q is not r and
                       c not in {self.cst_for(ag, x.expr, x.target(ag.name)) for _, x in q.constraints()}]
             o.append(f"alt_{rc}_{c} : alt {rc} {c} {'tt' if others else 'ff'}.")
+            if others:
+                self.alternative_rules(ag, rc, c, others)
+
+    def alternative_rules(self, ag: a.Agent, rc: str, c: str, others: list[a.Recipe]) -> None:
+        """The calling-context search at an activation of ``rc`` holding a request of ``c``: it
+        reconfigures only if one of ``others`` is acceptable in the current situation (4.4: its
+        pre-conditions hold), otherwise the search moves to its caller.
+
+        A pre-condition conjunct that calls the functional layer or reads the error context
+        (``last_error?``) cannot be decided inside this one step; it is taken as true (the
+        recipe selection that follows the switch still checks it)."""
+        cx = _Ctx(self, ag, [], run_tasks=False)
+        options = []
+        for q in others:
+            conj = [x for e in q.pre for x in a.conjuncts(e)
+                    if not any(True for _ in a.calls(x)) and
+                    not any(isinstance(n, a.LastError) for n in a.walk(x))]
+            form = "(pl (vbool tt))"
+            for x in reversed(conj):
+                px = self.pexp(x, cx)
+                form = px if form == "(pl (vbool tt))" else f"(pbin o_and {px} {form})"
+            options.append(form)
+        cond = options[0]
+        for f in options[1:]:
+            cond = f"(pbin o_or {cond} {f})"
+        prem, outs = self.premises(cx)
+        head = f"cres R Rk -o rq Rk Ak {c} Ik Kk -o act Ik Rk1 Tk {rc} N -o alive Ik{prem}"
+        keep = f"rq Rk Ak {c} Ik Kk * act Ik Rk1 Tk {rc} N * alive Ik{outs}"
+        self.rules.append(f"ask_alternative_{rc}_{c} : {head}\n  -o !peval vnil vnil vnil {cond} (vbool tt)\n"
+                          f"  -o {{{keep} * kill Ik (k_switch {c})}}.")
+        self.rules.append(f"ask_caller_{rc}_{c} : {head}\n  -o !peval vnil vnil vnil {cond} (vbool ff)\n"
+                          f"  -o {{{keep} * cres R Rk1}}.")
 
     def _code(self, sites: list[str]) -> str:
         out = "cnil"

@@ -396,6 +396,8 @@ class Narrator:
                 yield RoarEvent(st.i, "conflict", agent, f"{lab} ({text}) conflicts with {held}, which holds "
                                 f"the task it needs: asking the calling context of {held}",
                                 {"request": lab, "holder": held})
+        if rule.startswith(("ask_alternative_", "ask_caller_")):   # compiled per recipe and constraint
+            rule = rule[:rule.index("_", 4)]
         if rule in ("ask_alternative", "ask_caller", "no_alternative"):
             for c in map(V.cres, st.used(V.CRES)):
                 lab, at = self.label(c.request), self.label(c.at)
