@@ -186,6 +186,7 @@ class _Compiler:
         self.cst_ast: dict[str, tuple[a.Agent, a.Expr]] = {}
         self.task_run_csts: dict[str, str] = {}   # task const -> cst const
         self.predicates: dict[str, str] = {}      # pexp text -> agent (for cands)
+        self.ensured: set[str] = set()            # constraints sent by an ensure somewhere
         self.predicate_exprs: dict[str, tuple[a.Agent, a.Expr]] = {}   # pexp text -> (agent, qualified predicate)
         # cst -> the equalities its where clause establishes with literal values (hypotheses of the
         # logic layer, 4.3); None once two sends of it disagree (then it has none)
@@ -602,6 +603,8 @@ class _Compiler:
         E = cx.envpat()
         evals = "".join(f" -o !peval vnil {E} vnil {p} {w}" for p, w in zip(wvals, names))
         kind = "make" if isinstance(st, a.Make) else "ensure"
+        if kind == "ensure":
+            self.ensured.add(cst)
         pairs = self._list([f"(vpair (vcell {c}) {w})" for c, w in zip(cells, names)])
         req = (f"rq r a_{target} {cst} I k_{kind} * rs r s_sent * ppz r ff * owns I r ff"
                f" * hs r h_select vnil vnil vnil (vsome {pairs})")
@@ -876,6 +879,21 @@ class _Compiler:
             f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
             f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"
             f"  -o {{hs R (h_verdict B) EC F Pl W * {rq}{back}}}.")
+        if c in self.ensured:
+            # a held ensure is re-checked (4.4, 5.2): when its predicate stops holding, the
+            # request goes to temporary failure with the breach in its error context, its tasks
+            # are released, it decides again, and its emitter pauses meanwhile (figure 3)
+            ens = f"rq R a_{tag.name} {c} J k_ensure"
+            head = (f"hs R h_held EC F Pl W -o rs R s_success -o {ens} -o mask a_{tag.name} M -o !mrm M Pl M1{reads}\n"
+                    f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool ff) -o !ec_broke {c} EC EC1")
+            again = (f"hs R h_select EC1 F vnil vnone * rs R s_tempfail * {ens}"
+                     f" * mask a_{tag.name} M1{back}")
+            self.rules.append(
+                f"ensure_broken_{c} : {head}\n"
+                f"  -o rstat J Z -o !child_pause Z Z1 -o act J R0 T0 Rc0 N0 -o rs R0 S0 -o !shown Z Z1 S0 S1\n"
+                f"  -o {{{again} * rstat J Z1 * act J R0 T0 Rc0 N0 * rs R0 S1}}.")
+            self.rules.append(
+                f"ensure_broken_top_{c} : {head} -o !detached J\n  -o {{{again}}}.")
 
     def outcome_rules(self, fc: str, owner: Optional[str], name: str, rty: Optional[str]) -> list[str]:
         prim = None

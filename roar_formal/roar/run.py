@@ -398,13 +398,14 @@ class Narrator:
                                 {"request": lab, "holder": held})
         if rule.startswith(("ask_alternative_", "ask_caller_")):   # compiled per recipe and constraint
             rule = rule[:rule.index("_", 4)]
-        if rule in ("ask_alternative", "ask_caller", "no_alternative"):
+        if rule in ("ask_alternative", "ask_caller", "no_alternative", "holder_aborted"):
             for c in map(V.cres, st.used(V.CRES)):
                 lab, at = self.label(c.request), self.label(c.at)
                 agent = self.req_info.get(at, ("?",))[0]
                 verdict = {"ask_alternative": "has an alternative: it reconfigures",
                            "ask_caller": "has no alternative: asking its caller",
-                           "no_alternative": "is a request from outside: the conflict cannot be resolved"}[rule]
+                           "no_alternative": "is a request from outside: the conflict cannot be resolved",
+                           "holder_aborted": "was aborted: waiting for its tasks to be released"}[rule]
                 yield RoarEvent(st.i, "calling-context", agent, f"for {lab}: the emitter of {at} {verdict}",
                                 {"request": lab, "at": at})
 
@@ -578,6 +579,8 @@ def describe_ec(t, m: CompiledModel) -> list[str]:
             out.append(f"constraint failed: {m.csts.get(V.unwrap(x).head.name, ('?', '?'))[1]}")
         elif h == "vviol":
             out.append(f"post-condition violated: {m.csts.get(V.unwrap(x).head.name, ('?', '?'))[1]}")
+        elif h == "vbroke":
+            out.append(f"ensured constraint stopped holding: {m.csts.get(V.unwrap(x).head.name, ('?', '?'))[1]}")
         elif h == "vtsk":
             agent, task = m.tasks.get(V.unwrap(x).head.name, ("?", "?"))
             out.append(f"task failed: {agent}::{task}")

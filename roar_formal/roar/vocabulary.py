@@ -289,7 +289,7 @@ TERMS: dict = {"vcons": Cons, "m_call": MCall, "ccons": CCons, "k_cst": KCst}
 #: constructor name -> the sort of its one argument (read with :func:`unwrap`)
 WRAPPERS: dict = {
     "vnum": "number", "vbool": "bool", "vstr": "string", "vrec": "val", "vopq": "number", "vsome": "val",
-    "vtsk": "task", "vcst": "cst", "vviol": "cst", "vconf": "task", "vsite": "site",
+    "vtsk": "task", "vcst": "cst", "vviol": "cst", "vbroke": "cst", "vconf": "task", "vsite": "site",
     "m_make": "req", "m_block": "val", "h_write": "val",
     "k_local": "site", "k_switch": "cst", "k_task": "task",
 }

@@ -59,7 +59,7 @@ to = [6, 6]
 [[door]]
 name = "d1"
 from = [6, 2.4]
-from repo import ROOT
+to = [6, 3.6]
 [robot]
 start = [1.5, 3, 0]
 [faults.door_closes]
