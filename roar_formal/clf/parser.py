@@ -234,16 +234,9 @@ class _Build(Transformer):
 
     def query(self, c):
         kw, d, e, l, a, goal = c
-        ev, lv, av = _bound(e), _bound(l), _bound(a)
-        # Celf's checks of the bounds: e solutions cannot be expected when looking for fewer,
-        # and repeated attempts look for every solution
-        if ev != "*" and lv != "*" and ev > lv:
-            raise SyntaxError_(f"#query expects {ev} solutions but looks for only {lv} "
-                               "(the second bound may not exceed the third)", _tpos(e))
-        if av > 1 and lv != "*":
-            raise SyntaxError_(f"#query with {av} attempts must look for every solution: "
-                               "its third bound must be '*'", _tpos(l))
-        return s.Query(_tpos(kw), _bound(d), ev, lv, av, goal)
+        # Celf checks the bounds when the query runs, after its type (see query.run_query)
+        return s.Query(_tpos(kw), _bound(d), _bound(e), _bound(l), _bound(a), goal,
+                       bounds_pos=tuple(_tpos(b) for b in (d, e, l, a)))
 
     def exec(self, c):
         kw, n, start = c

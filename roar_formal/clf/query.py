@@ -62,11 +62,47 @@ class DirectiveResult:
     answers: list[dict[str, str]] = field(default_factory=list)
 
 
+class MalformedQueryError(RoarError):
+    """Bounds of ``#query d e l a`` that Celf refuses when the query is reached ("Malformed query
+    (D,E,L,A)", a general error of the query in Celf's terms, after its type is checked)."""
+
+
+def _plural(n, word: str) -> str:
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
+def _nth(n: int) -> str:
+    if n % 100 in (11, 12, 13):
+        return f"{n}th"
+    return f"{n}{ {1: 'st', 2: 'nd', 3: 'rd'}.get(n % 10, 'th') }"
+
+
+def check_bounds(q: QueryDirective) -> None:
+    """Celf's checks of ``#query d e l a``, in Celf's order (made after the query is printed and
+    only when it is not ignored): more than one attempt must look for every solution (``l`` is
+    ``*``), and the expected count must be below the number looked for (``e < l``: the search
+    stops when it finds the ``l``-th solution, so ``e >= l`` could never be confirmed)."""
+    where = list(q.bounds_pos) if len(q.bounds_pos) == 4 else [q.pos] * 4
+    e, look, a = q.expected, q.look, q.attempts
+    if a != "*" and a >= 2 and look != "*":
+        raise MalformedQueryError(
+            f"malformed query (D,E,L,A): A>1 and L<>*: {_plural(a, 'attempt')} must each look for every "
+            f"solution, so the third bound must be '*', not {look} (Celf does not explore the monad's "
+            "choices and backtracking together)", where[2])
+    if e != "*" and look != "*" and e >= look:
+        raise MalformedQueryError(
+            f"malformed query (D,E,L,A): E>=L: it expects {_plural(e, 'solution')} and stops at the "
+            f"{_nth(look)} it finds, so the count cannot be checked; look for one "
+            f"more than expected (#query {_b(q.depth)} {e} {e + 1} {a} ...) or expect '*'", where[1])
+
+
 def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable[[str], None] = print,
               fair: bool = False, proofs: bool = False) -> DirectiveResult:
-    """Run ``#query d e l a A`` as Celf does: up to ``a`` attempts, each looking for ``l``
-    solutions; the query succeeds as soon as one attempt finds ``e`` of them. A query with
-    ``l = 0`` or ``a = 0`` is ignored."""
+    """Run ``#query d e l a A`` as Celf does: printed first; ignored when ``l = 0`` or ``a = 0``;
+    malformed bounds refused (:func:`check_bounds`); then up to ``a`` attempts, each looking for
+    ``l`` solutions (stopping at the ``l``-th), the query succeeding as soon as one attempt finds
+    exactly ``e``. With ``proofs`` each solution prints its proof term (Celf's ``Solution: M``),
+    otherwise ``Solution: _``."""
     res = DirectiveResult("query", True)
     program = program.at(q.prefix)
     show = program.show
@@ -75,7 +111,8 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
     if q.look == 0 or q.attempts == 0:
         emit("Ignoring query")  # Celf's words: nothing is run, nothing checked
         return res
-    attempts = 1 if q.attempts == "*" else q.attempts
+    check_bounds(q)
+    attempts = 1 if q.attempts == "*" else q.attempts  # `*` is not read (Celf's grammar); built by hand: once
     look = None if q.look == "*" else q.look
     depth = None if q.depth == "*" else q.depth
     counts = []
@@ -113,46 +150,87 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
     res.ok = False
     emit("Query failed")  # Celf's words
     found = counts[0] if len(counts) == 1 else "/".join(str(c) for c in counts)
-    tries = "" if len(counts) == 1 else f" in any of {len(counts)} attempts (found {found})"
-    if tries:
-        raise QueryError(f"query failed: expected {q.expected} solution{'s' if q.expected != 1 else ''}"
-                         f"{tries}", q.pos)
-    raise QueryError(f"query failed: expected {q.expected} solution{'s' if q.expected != 1 else ''}, "
-                     f"found {found}", q.pos)
+    expected = _plural(q.expected, "solution")
+    if len(counts) > 1:
+        raise QueryError(f"query failed: expected {expected} in any of {len(counts)} attempts (found {found})",
+                         q.pos)
+    if look is not None and found == look:
+        raise QueryError(f"query failed: expected {expected}, found at least {found} (the search stops at "
+                         f"the {_nth(look)})", q.pos)
+    raise QueryError(f"query failed: expected {expected}, found {found}", q.pos)
+
+
+def context_layout(ctx: Context, width: int = 80) -> list[str]:
+    """The context as Celf prints it after ``#exec`` and at each step of ``#trace``: ``-- `` and
+    the hypotheses separated by ``, ``, each its type followed by ``lin``, ``aff`` or ``pers``,
+    continued on lines indented by three spaces past ``width`` columns; ``-- (nothing)`` when it
+    is empty. Celf lists them in its context's order, this engine sorted by text (stable across
+    seeds and runs)."""
+    imp = ctx.implicit
+    items = []
+    for mode, t, n in ctx.facts():
+        items.extend([f"{_show(t, implicit=imp)} {_MODE_WORD[mode]}"] * n)
+    for mode, t in ctx.open:
+        items.append(f"{_show(zonk(t), implicit=imp)} {_MODE_WORD[mode]}")
+    for r in ctx.rules.values():
+        items.append(f"{_show(zonk(r.source), implicit=imp)} {_MODE_WORD[r.mode]}")
+    for mode, t in ctx.inert:
+        items.append(f"{_show(t, implicit=imp)} {_MODE_WORD[mode]}")
+    items.sort()
+    if not items:
+        return ["-- (nothing)"]
+    lines, line = [], "--"
+    for i, item in enumerate(items):
+        piece = item + ("," if i < len(items) - 1 else "")
+        if line.strip() not in ("--", "") and len(line) + 1 + len(piece) > width:
+            lines.append(line)
+            line = "  "
+        line += " " + piece
+    lines.append(line)
+    return lines
+
+
+_MODE_WORD = {LIN: "lin", AFF: "aff", PERS: "pers"}
 
 
 def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[str], None] = print,
              trace: bool = False, fair: bool = False) -> DirectiveResult:
+    """Run ``#exec n S`` or ``#trace n S`` with Celf's output: ``Exec n S`` (``Trace n S``), the
+    context (:func:`context_layout`; with ``#trace``, or ``trace``, also before the first step
+    and after each one), then ``Success: k steps``, or ``Exec failed, expected n steps but only
+    k taken`` (raising :class:`QueryError`, Celf's "query failed") when it quiesced early."""
     kw = "Trace" if d.trace else "Exec"
     program = program.at(d.prefix)
-    emit(f"{kw} ({_b(d.steps)}) {program.show(d.start)}.")
+    emit(f"{kw} {_b(d.steps)} {program.show(d.start)}")
     ctx = program.start_context(d.start)
     res = DirectiveResult("exec", True)
     show_each = d.trace or trace
+    if show_each:
+        for line in context_layout(ctx):
+            emit(line)
 
     def on_step(step, c):
         if show_each:
-            emit(f"-- step {res.steps + 1}: {step.rule}")
-            for line in show_context(c):
-                emit(f"   {line}")
+            for line in context_layout(c):
+                emit(line)
         res.steps += 1
 
     bound = None if d.steps == "*" else d.steps
     try:
-        steps, quiescent = program.run(ctx, bound, seed=seed, fair=fair, on_step=on_step)
+        steps, _quiescent = program.run(ctx, bound, seed=seed, fair=fair, on_step=on_step)
     except BuiltinError as exc:
         raise BuiltinError(exc.message, exc.pos or d.pos, exc.notes) from None
     res.steps = steps
     res.final = ctx
-    emit(f"Final context after {steps} step{'s' if steps != 1 else ''}{' (quiescent)' if quiescent else ''}:")
-    for line in show_context(ctx):
-        emit(f"  {line}")
+    if not show_each:
+        for line in context_layout(ctx):  # Celf prints it on success; here also on failure
+            emit(line)
     if bound is not None and steps < bound:
         res.ok = False
-        emit(f"{kw} error.")
+        emit(f"{kw} failed, expected {bound} steps but only {steps} taken")  # Celf's words
         raise QueryError(f"#{kw.lower()} expected exactly {bound} steps, but the program quiesced after {steps}",
                          d.pos)
-    emit(f"{kw} ok.")
+    emit(f"Success: {steps} steps")  # Celf's words (also for 1)
     return res
 
 
@@ -220,4 +298,5 @@ def with_big_stack(fn, *args, **kwargs):
     return result.get("value")
 
 
-__all__ = ["run_query", "run_exec", "run_directives", "run_file", "show_context", "with_big_stack", "RoarError"]
+__all__ = ["run_query", "run_exec", "check_bounds", "context_layout", "MalformedQueryError", "run_directives",
+           "run_file", "show_context", "with_big_stack", "RoarError"]

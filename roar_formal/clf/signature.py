@@ -62,6 +62,7 @@ class QueryDirective:
     goal: Node
     logic_vars: list  # (name, EVar) in order of first occurrence
     prefix: int = -1  # how many declarations precede it (it sees only those); -1: all
+    bounds_pos: tuple = ()  # the positions of d, e, l, a (Celf's checks of the bounds are located there)
 
 
 @dataclass
@@ -173,7 +174,8 @@ class Elaborator:
         self._solve_postponed(q.pos)
         goal = zonk(goal)
         named = [(n, x) for n, x in self.free.items()]
-        return QueryDirective(q.pos, q.depth, q.expected, q.look, q.attempts, goal, named, len(self.sig.consts))
+        return QueryDirective(q.pos, q.depth, q.expected, q.look, q.attempts, goal, named, len(self.sig.consts),
+                              bounds_pos=q.bounds_pos)
 
     def exec_(self, e: S.Exec) -> ExecDirective:
         self._begin()

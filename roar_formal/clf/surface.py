@@ -248,6 +248,7 @@ class Query(Node):
     look: Bound
     attempts: Bound
     goal: Expr
+    bounds_pos: tuple = field(default=(), compare=False)  # where d, e, l, a are written (Celf's checks)
 
 
 @dataclass(frozen=True)

@@ -13,41 +13,60 @@ import os
 import signal
 import sys
 
-import typer
-from rich.markup import escape
-
-from .console import make_console
 from ..errors import RoarError
 
-# the Typer application; ``cli.app`` (module ``__getattr__`` below) is it with every command registered
-_app = typer.Typer(
-    name="roar-verify",
-    help="Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration.",
-    no_args_is_help=True,
-    add_completion=True,
-    pretty_exceptions_enable=False,
-)
-
-err_console = make_console(stderr=True)
+# typer and rich are imported only by the commands that use them: `roar-verify clf FILE` on a
+# small program takes less time to run than typer takes to import (see docs/clf.md, start-up)
+_APP = None
 
 
-def _version(value: bool) -> None:
-    if value:
-        from importlib.metadata import PackageNotFoundError, version
-        try:
-            v = version("roar-formal")
-        except PackageNotFoundError:  # run from a source tree without installing
-            v = "unknown (not installed)"
-        print(f"roar-verify (roar-formal) {v}")
-        raise typer.Exit(0)
+def _typer_app():
+    """The Typer application (made once, when a command needs Typer); ``cli.app`` (module
+    ``__getattr__`` below) is it with every command registered."""
+    global _APP
+    if _APP is None:
+        import typer
+
+        def _version(value: bool) -> None:
+            if value:
+                from importlib.metadata import PackageNotFoundError, version
+                try:
+                    v = version("roar-formal")
+                except PackageNotFoundError:  # run from a source tree without installing
+                    v = "unknown (not installed)"
+                print(f"roar-verify (roar-formal) {v}")
+                raise typer.Exit(0)
+
+        app = typer.Typer(
+            name="roar-verify",
+            help="Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration.",
+            no_args_is_help=True,
+            add_completion=True,
+            pretty_exceptions_enable=False,
+        )
+
+        @app.callback()
+        def _root(
+            show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                              help="Print the version and exit."),
+        ) -> None:
+            """Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration."""
+
+        _APP = app
+    return _APP
 
 
-@_app.callback()
-def _root(
-    show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
-                                      help="Print the version and exit."),
-) -> None:
-    """Verify ROAR robot control architectures: CLF engine, TCA proofs, state-space exploration."""
+def _print_error(markup: str) -> None:
+    """Print a message (rich markup) on standard error through the command line's console."""
+    from .console import make_console
+
+    make_console(stderr=True).print(markup, markup=True, soft_wrap=True)
+
+
+def _escape(text: str) -> str:
+    from rich.markup import escape
+
+    return escape(text)
 
 
 _PARTS = ("clf", "run", "robot", "check", "tca")  # the order commands are listed in
@@ -62,7 +81,7 @@ def _register(parts=_PARTS) -> None:
     for part in _PARTS:
         if part in parts and part not in _registered:
             _registered.append(part)
-            importlib.import_module(f".{part}", __package__).register(_app)
+            importlib.import_module(f".{part}", __package__).register(_typer_app())
 
 
 def _register_all() -> None:
@@ -81,7 +100,7 @@ def __getattr__(name: str):
     # `cli.app` seen from outside has every command (tests list them)
     if name == "app":
         _register_all()
-        return _app
+        return _typer_app()
     raise AttributeError(name)
 
 
@@ -97,22 +116,20 @@ def main(argv: list[str] | None = None) -> None:
                 run_clf(**opts)
                 sys.exit(0)
         _register_for(args)
-        _app(args=argv, standalone_mode=True, prog_name="roar-verify")
+        _typer_app()(args=argv, standalone_mode=True, prog_name="roar-verify")
     except RoarError as exc:
-        err_console.print(f"[bold red]error:[/] {escape(exc.format())}", markup=True, soft_wrap=True)
+        _print_error(f"[bold red]error:[/] {_escape(exc.format())}")
         sys.exit(2)
     except Exception as exc:  # a bug of ours, not the user's: short message, traceback on request
         if isinstance(exc, OSError) and exc.filename is not None and exc.errno in _PATH_ERRNOS:
             # a path the user gave that the system refuses (too long, a loop of links, no permission,
             # read-only, full disk) wherever a reader or writer met it: bad input, not a bug
-            err_console.print(f"[bold red]error:[/] {escape(str(exc.filename))}: {escape(exc.strerror or str(exc))}",
-                              markup=True, soft_wrap=True)
+            _print_error(f"[bold red]error:[/] {_escape(str(exc.filename))}: {_escape(exc.strerror or str(exc))}")
             sys.exit(2)
         if os.environ.get("ROAR_DEBUG"):
             raise
-        err_console.print(f"[bold red]internal error:[/] {escape(type(exc).__name__)}: {escape(str(exc))}\n"
-                          "This is a bug in roar-formal; rerun with ROAR_DEBUG=1 to see the traceback.",
-                          markup=True, soft_wrap=True)
+        _print_error(f"[bold red]internal error:[/] {_escape(type(exc).__name__)}: {_escape(str(exc))}\n"
+                     "This is a bug in roar-formal; rerun with ROAR_DEBUG=1 to see the traceback.")
         sys.exit(3)
 
 

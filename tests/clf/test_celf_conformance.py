@@ -6,7 +6,8 @@ Header lines (``%`` comments at the top of each file):
 * ``% construct:`` / ``% behaviour:`` what it tests; ``% celf:`` Celf's answer in words
   (derived by hand: the suite runs without Celf);
 * ``% expect: ok`` (exit 0), or ``% expect: CATEGORY LINE:COL FRAGMENT`` with CATEGORY one of
-  ``parse error``, ``type error``, ``mode error``, ``query failed`` (exit 2, a located message
+  ``parse error``, ``type error``, ``mode error``, ``general error`` (Celf's "Error in query":
+  malformed bounds), ``query failed`` (exit 2, a located message
   of that class containing FRAGMENT, no traceback); a known deviation says
   ``% expect: unsupported LINE:COL FRAGMENT`` and ``% deviation:`` why;
 * ``% output: LINE`` a line the run must print (repeatable), ``% absent: TEXT`` text it must not;
@@ -29,7 +30,7 @@ from repo import ROOT
 
 HERE = Path(__file__).resolve().parent / "celf_conformance"
 CASES = sorted(HERE.glob("*.clf"))
-EXPECT = re.compile(r"(ok|parse error|type error|mode error|query failed|unsupported)(?:\s+(\d+):(\d+)\s+(.*\S))?$")
+EXPECT = re.compile(r"(ok|parse error|type error|mode error|general error|query failed|unsupported)(?:\s+(\d+):(\d+)\s+(.*\S))?$")
 
 
 def header(path: Path) -> dict:
@@ -60,7 +61,9 @@ def test_suite_covers_issue_13():
                    "typing_bound_application", "mode_implicit_and_empty", "mode_error", "pattern_exists",
                    "pattern_pi", "lambda_annotated", "proof_term_definition", "proof_term_patterns",
                    "proof_term_linearity", "linear_premise_backward", "linear_premise_consumes",
-                   "logic_variable_in_context", "logic_variable_in_rule_head", "logic_variable_accumulator"):
+                   "logic_variable_in_context", "logic_variable_in_rule_head", "logic_variable_accumulator",
+                   "query_e_equals_l", "query_look_one_more", "query_bounds_checked_in_order",
+                   "exec_context_shape", "exec_failed", "trace_contexts", "solution_term_printed"):
         assert needed in names, needed
 
 

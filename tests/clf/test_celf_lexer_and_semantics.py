@@ -114,6 +114,8 @@ def test_fast_args():
     assert fast_args(["--seed", "3", "f.clf", "--trace"])["seed"] == 3
     assert fast_args(["--seed=4", "--fair", "--proof", "f.clf"]) == {
         "seed": 4, "trace": False, "fair": True, "proof": True, "file": fast_args(["f.clf"])["file"]}
+    assert fast_args(["f.clf"])["proof"] is True  # Celf prints every solution's term
+    assert fast_args(["--no-proof", "f.clf"])["proof"] is False
     for bad in ([], ["a", "b"], ["--help"], ["--seed", "x", "f"], ["--nope", "f"]):
         assert fast_args(bad) is None
 
@@ -124,7 +126,8 @@ def test_clf_command_imports_only_what_it_needs(tmp_path):
     code = ("import sys\nfrom roar_formal.cli import main\n"
             f"try:\n    main(['clf', {str(f)!r}])\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
             "loaded = [m for m in ('roar_formal.explore', 'roar_formal.robot', 'roar_formal.roar', "
-            "'roar_formal.tca', 'typer._adapters', 'pydantic') if m in sys.modules]\n"
+            "'roar_formal.tca', 'roar_formal.trace', 'typer', 'click', 'rich', 'pydantic', 'z3', 'numpy', "
+            "'scipy', 'pymunk', 'networkx', 'matplotlib') if m in sys.modules]\n"
             "assert not loaded, loaded\n")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr

@@ -87,7 +87,10 @@ def test_trace_prints_every_step():
     _, res, lines = run(text="nat : type. z : nat. s : nat -> nat. count : nat -> type.\n"
                              "tick : count (s N) -o {count N}.\n#trace * count (s (s (s z))).\n")
     assert res[0].steps == 3 and show_context(res[0].final) == ["count z"]
-    assert sum(1 for x in lines if x.startswith("-- step")) == 3
+    # Celf's shape: the context before the first step and after each of the three
+    assert [x for x in lines if x.startswith("-- ")] == [
+        "-- count (s (s (s z))) lin", "-- count (s (s z)) lin", "-- count (s z) lin", "-- count z lin"]
+    assert lines[-1] == "Success: 3 steps"
 
 
 # -- the explorer API on small states -------------------------------------------

@@ -1,0 +1,138 @@
+"""``roar-verify clf`` output in Celf's shape: the context layout after ``#exec``/``#trace``,
+``--proof``/``--no-proof``, colours only on a terminal, Celf's checks of ``#query`` bounds
+(library level), and a pipeline cut short."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+
+import pytest
+
+from roar_formal.cli import main
+from roar_formal.cli.clf import line_printer
+from roar_formal.clf.program import Program
+from roar_formal.clf.query import MalformedQueryError, context_layout, run_directives, with_big_stack
+
+SIG = "a : type. b : type. k : type. t : type. long_name_of_a_fact : type.\n"
+
+
+def final_context(text: str):
+    prog = Program.from_text(SIG + text, "<t>")
+    res = with_big_stack(run_directives, prog, emit=lambda s: None)
+    return res[-1].final
+
+
+def test_context_layout_modes_and_order():
+    ctx = final_context("#exec * b * !k * @t * a * a.\n")
+    assert context_layout(ctx) == ["-- a lin, a lin, b lin, k pers, t aff"]
+
+
+def test_context_layout_nothing():
+    ctx = final_context("r : a -o {1}.\n#exec * a.\n")
+    assert context_layout(ctx) == ["-- (nothing)"]
+
+
+def test_context_layout_wraps_past_80_columns():
+    ctx = final_context("#exec * " + " * ".join(["long_name_of_a_fact"] * 9) + ".\n")
+    lines = context_layout(ctx)
+    assert len(lines) == 3 and lines[0].startswith("-- long_name_of_a_fact lin, ")
+    assert all(len(x) <= 80 for x in lines)
+    assert all(x.startswith("   long_name_of_a_fact lin") for x in lines[1:])
+    assert " ".join(x.strip() for x in lines) == "-- " + ", ".join(["long_name_of_a_fact lin"] * 9)
+    assert context_layout(ctx, width=1000) == ["-- " + ", ".join(["long_name_of_a_fact lin"] * 9)]
+
+
+def test_rules_in_the_context_are_listed():
+    ctx = final_context("go : type.\nr : go -o {a -o {b}}.\n#exec * go.\n")
+    assert context_layout(ctx) == ["-- a -o {b} lin"]
+
+
+def run_cli(capsys, *args):
+    with pytest.raises(SystemExit) as info:
+        main(["clf", *map(str, args)])
+    out, err = capsys.readouterr()
+    return info.value.code or 0, out, err
+
+
+def test_proof_terms_by_default_and_no_proof(tmp_path, capsys):
+    f = tmp_path / "p.clf"
+    f.write_text("a : type. b : type. r : a -o {b}.\n#query * 1 * 1 a -o {b}.\n")
+    code, out, _ = run_cli(capsys, f)
+    assert code == 0 and out.splitlines()[1] == "Solution: \\X1. {let {X2} = r X1 in X2}"
+    code, out, _ = run_cli(capsys, f, "--no-proof")
+    assert code == 0 and out.splitlines()[1] == "Solution: _"
+    code, out, _ = run_cli(capsys, "--no-proof", "--proof", f)  # the last one wins
+    assert code == 0 and out.splitlines()[1].startswith("Solution: \\X1.")
+
+
+def test_typer_route_has_the_same_options(tmp_path, capsys):
+    """Arguments the fast reader leaves to Typer (here `--` before the file) give the same run."""
+    from roar_formal.cli.clf import fast_args
+    f = tmp_path / "p.clf"
+    f.write_text("a : type. r : a.\n#query * 1 * 1 a.\n")
+    assert fast_args(["--no-proof", "--", str(f)]) is None
+    code, out, _ = run_cli(capsys, "--no-proof", "--", f)
+    assert code == 0 and out.splitlines() == ["Query (*, 1, *, 1) a.", "Solution: _", "Query ok."]
+    code, out, _ = run_cli(capsys, "--", f)
+    assert code == 0 and out.splitlines()[1] == "Solution: r"
+
+
+def test_colours_only_on_a_terminal(monkeypatch):
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    plain = io.StringIO()
+    line_printer(plain)("Query ok.")
+    assert plain.getvalue() == "Query ok.\n"
+    monkeypatch.delenv("NO_COLOR", raising=False)
+    monkeypatch.setenv("TERM", "xterm")
+    tty = Tty()
+    emit = line_printer(tty)
+    emit("Query ok.")
+    emit("Exec failed, expected 3 steps but only 1 taken")
+    emit("-- a lin")
+    assert tty.getvalue().splitlines() == ["\x1b[32mQuery ok.\x1b[0m",
+                                           "\x1b[31mExec failed, expected 3 steps but only 1 taken\x1b[0m",
+                                           "-- a lin"]
+    monkeypatch.setenv("NO_COLOR", "1")
+    tty = Tty()
+    line_printer(tty)("Query ok.")
+    assert tty.getvalue() == "Query ok.\n"
+    # control characters from the input are shown, never sent
+    plain = io.StringIO()
+    line_printer(plain)("Solution: \x1b[2J")
+    assert plain.getvalue() == "Solution: \\x1b[2J\n"
+
+
+@pytest.mark.parametrize("bounds, ok", [
+    ("* 1 2 1", True), ("* * 1 1", True), ("* 1 3 1", True), ("* 1 * 3", True),
+    ("* 1 1 1", False), ("* 2 1 1", False), ("* 1 1 2", False), ("* * 3 2", False),
+    ("* 5 0 1", True), ("* 2 1 0", True),  # ignored before the bounds are checked
+])
+def test_library_checks_bounds_when_the_query_runs(bounds, ok):
+    prog = Program.from_text(f"a : type. r : a.\n#query {bounds} a.\n", "<q>")  # reading accepts them
+    lines: list[str] = []
+    if ok:
+        with_big_stack(run_directives, prog, emit=lines.append)
+    else:
+        with pytest.raises(MalformedQueryError) as info:
+            with_big_stack(run_directives, prog, emit=lines.append)
+        assert info.value.message.startswith("malformed query (D,E,L,A): ")
+        assert info.value.pos.line == 2
+    assert lines[0] == f"Query ({', '.join(bounds.split())}) a."
+
+
+def test_a_pipeline_cut_short_stops_quietly(tmp_path):
+    f = tmp_path / "many.clf"
+    f.write_text("a : type.\n" + "".join(f"r{i} : a.\n" for i in range(3000)) + "#query * * * 1 a.\n")
+    code = ("import sys\nfrom roar_formal.cli import main\nmain(['clf', sys.argv[1]])\n")
+    p = subprocess.Popen([sys.executable, "-c", code, str(f)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    first = p.stdout.readline()
+    p.stdout.close()  # the reader leaves (as `| head -1` does)
+    err = p.stderr.read().decode()
+    p.wait(timeout=120)
+    assert first.startswith(b"Query (")
+    assert p.returncode == 141 and "Traceback" not in err and "internal error" not in err, err
