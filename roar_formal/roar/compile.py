@@ -117,6 +117,7 @@ class CompiledModel:
     call_sites: dict[str, list] = field(default_factory=dict)   # function const -> positions of its calls
     candidates: dict[str, list] = field(default_factory=dict)   # cst -> (agent, task) the logic layer proved
     incompatible: dict[tuple[str, str], list[str]] = field(default_factory=dict)  # (agent, task) -> tasks it masks (4.3)
+    unused_rules: list[str] = field(default_factory=list)   # agent::rule the logic layer cannot use (they call functions)
 
     def program(self):
         """The CLF program (cached)."""
@@ -147,6 +148,7 @@ class _Ctx:
         self.slots: dict[int, int] = {}    # id(Call) -> position of its result from the bottom
         self.ran: set[str] = set()         # cells whose task was run
         self.pushed = 0
+        self.logic: dict[str, str] = {}    # logic variables of a domain rule -> CLF variables (pexps)
 
     def var(self, cell: str) -> str:
         if self.snapshot:
@@ -336,6 +338,8 @@ class _Compiler:
         if isinstance(e, a.StringLit):
             return f"(pl (vstr {str_lit(e.value)}))"
         if isinstance(e, a.Name):
+            if e.name in cx.logic:
+                return cx.logic[e.name]
             if e.name in cx.env:
                 return f"(ploc {nat(cx.env.index(e.name))})"
             return cx.var(self.cell(cx.agent.name, e.name))
@@ -755,6 +759,7 @@ class _Compiler:
                         o.append(f"post_{tc}_{i}_{len(o)} : post {tc} (fatom {self.pexp(self._qualify(conj, ag.name), pcx)}).")
                 rcs = [f"(vrcp {self.recipe_c(ag.name, t.name, r.name)})" for r in t.recipes]
                 o.append(f"recipes_{tc} : recipes {tc} {self._list(rcs)}.")
+        o.extend(self.domain_rules())
         # recipe bodies
         for ag in spec.agents:
             for t in ag.tasks:
@@ -920,6 +925,33 @@ class _Compiler:
                 res = "callfail D"
             rules.append(f"outcome_{fc}_{oname} : pending {fc} _ D{writes_p} -o {{{res}{writes_o}}}.")
         return rules
+
+    def domain_rules(self) -> list[str]:
+        """The agents' rules (``NAME = P, ... |- C, ...;``) as clauses of the entailment ``hyp``
+        (4.3: "the rules associated to the domain of the constraint"): each conclusion conjunct
+        follows from the premises, each use spending one unit of the proof budget. Capitalised
+        names that are not variables of the agent are logic variables over expressions. A rule
+        that calls a function or reads ``last_error?`` cannot apply, since constraints and
+        post-conditions do not call functions; it is listed in ``CompiledModel.unused_rules``."""
+        out = []
+        for ag in self.spec.agents:
+            own = {v.name for v in ag.vars}
+            for rule in ag.rules:
+                exprs = list(rule.premises) + list(rule.conclusions)
+                if any(isinstance(n, (a.Call, a.LastError)) for e in exprs for n in a.walk(e)):
+                    self.model.unused_rules.append(f"{ag.name}::{rule.name}")
+                    continue
+                cx = _Ctx(self, ag, [], snapshot=True)
+                for e in exprs:
+                    for ref in a.refs(e):
+                        if isinstance(ref, a.Name) and ref.name not in own and ref.name[:1].isupper():
+                            cx.logic.setdefault(ref.name, f"L{len(cx.logic) + 1}")
+                prem = [self.pexp(x, cx) for e in rule.premises for x in a.conjuncts(e)]
+                for i, c in enumerate(x for e in rule.conclusions for x in a.conjuncts(e)):
+                    name = f"dom_{ag.name}_{rule.name}_{i}"
+                    concl = f"hyp {'(s N)' if prem else '_'} T (fatom {self.pexp(c, cx)})"
+                    out.append(f"{name} : {concl}" + "".join(f" <- hyp N T (fatom {q})" for q in prem) + ".")
+        return out
 
     def candidates(self, sig) -> str:
         """The logic layer at compile time: which tasks' post-conditions entail each predicate (4.3, 8.2).
