@@ -117,6 +117,7 @@ class CompiledModel:
     call_sites: dict[str, list] = field(default_factory=dict)   # function const -> positions of its calls
     candidates: dict[str, list] = field(default_factory=dict)   # cst -> (agent, task) the logic layer proved
     incompatible: dict[tuple[str, str], list[str]] = field(default_factory=dict)  # (agent, task) -> tasks it masks (4.3)
+    hypotheses: dict[str, list] = field(default_factory=dict)    # cst -> (agent, task, hypothesis) candidates under a hypothesis
     unused_rules: list[str] = field(default_factory=list)   # agent::rule the logic layer cannot use (they call functions)
 
     def program(self):
@@ -854,6 +855,8 @@ class _Compiler:
         for t in tag.tasks:
             for e in t.pre:
                 add(self._qualify(e, tag.name))
+            for e in t.post:   # hypotheses (candidates) are made of post-condition and predicate sides
+                add(self._qualify(e, tag.name))
         where = self.where_cells.get(c, [])
         for w in where:
             if w not in cells:
@@ -962,24 +965,100 @@ class _Compiler:
         recorded as ``cands`` clauses in declaration order.
         """
         from ..clf.backward import Backward
-        goals = []
-        for p, agent in sorted(self.predicates.items()):
-            for t in self.spec.agent(agent).tasks:
-                goals.append((p, self.task_c(agent, t.name)))
         budget = nat(PROOF_BUDGET)
-        queries = "".join(f"#query * * * 1 prove {budget} {tc} {self.goal_form(p)}.\n" for p, tc in goals)
-        prog = Program(extend_signature(sig, queries, "<compiled model>"))
-        found: dict[str, list[str]] = {p: [] for p in self.predicates}
-        for (p, tc), q in zip(goals, [d for d in prog.sig.directives if hasattr(d, "goal")]):
-            for _ in Backward(prog).solve(q.goal):
-                found[p].append(f"(vtsk {tc})")
-                break
+
+        def provable(pairs: list[tuple[str, str]]) -> list[bool]:
+            """Whether ``prove`` succeeds for each (task, formula)."""
+            queries = "".join(f"#query * * * 1 prove {budget} {tc} {form}.\n" for tc, form in pairs)
+            prog = Program(extend_signature(sig, queries, "<compiled model>"))
+            goals = [d for d in prog.sig.directives if hasattr(d, "goal")]
+            return [next(iter(Backward(prog).solve(q.goal)), None) is not None for q in goals]
+
+        found: dict[str, list[str]] = {}
+        pending = sorted(self.predicates.items())
+        while pending:   # hypotheses are predicates too: their candidates are found in a next round
+            pairs = [(p, agent, t) for p, agent in pending for t in self.spec.agent(agent).tasks]
+            direct = provable([(self.task_c(agent, t.name), self.goal_form(p)) for p, agent, t in pairs])
+            for p, _agent, _t in pairs:
+                found.setdefault(p, [])
+            for (p, agent, t), ok in zip(pairs, direct):
+                if ok:
+                    found[p].append((t, None))
+            # "if there is no direct solution, but a solution under certain hypotheses" (4.3)
+            tries = []   # (p, agent, task, hypothesis) for the predicates no task entails directly
+            for (p, agent, t), ok in zip(pairs, direct):
+                if not found[p] and p not in self.hyp_keys:   # (a where-keyed one keeps its own)
+                    for h in self.hypotheses(self.predicate_exprs[p], t):
+                        tries.append((p, agent, t, h))
+            if tries:
+                ctx = lambda agent: _Ctx(self, self.spec.agent(agent), [], snapshot=True)
+                forms = [(self.task_c(agent, t.name),
+                          f"(fwith (fatom {self.pexp(h, ctx(agent))}) {self.goal_form(p)})") for p, agent, t, h in tries]
+                done: set = set()
+                for (p, agent, t, h), ok in zip(tries, provable(forms)):
+                    if ok and (p, t.name) not in done:
+                        done.add((p, t.name))
+                        found[p].append((t, h))
+            # keep declaration order, direct or under a hypothesis
+            pending = []
+            for p in list(found):
+                agent = self.predicates[p]
+                order = {t.name: i for i, t in enumerate(self.spec.agent(agent).tasks)}
+                found[p].sort(key=lambda th: order[th[0].name])
+                for t, h in found[p]:
+                    if h is not None:
+                        hp = self.pexp(h, _Ctx(self, self.spec.agent(agent), [], snapshot=True))
+                        if hp not in self.predicates:
+                            self.predicates[hp] = agent
+                            self.predicate_exprs.setdefault(hp, (self.spec.agent(agent), h))
+                            pending.append((hp, agent))
+        out_lists: dict[str, list[str]] = {}
+        for p, got in found.items():
+            agent = self.predicates[p]
+            items = []
+            for t, h in got:
+                tc = self.task_c(agent, t.name)
+                hs = "vnil" if h is None else \
+                    f"(vcons (vpexp {self.pexp(h, _Ctx(self, self.spec.agent(agent), [], snapshot=True))}) vnil)"
+                items.append(f"(vpair (vtsk {tc}) {hs})")
+                if h is not None:
+                    self.model.hypotheses.setdefault(p, []).append((agent, t.name, format_expr(h)))
+            out_lists[p] = items
         for c, key in self.cst_pexp.items():   # for people and tests: each constraint's candidate tasks
-            self.model.candidates[c] = [self.model.tasks[t[len("(vtsk "):-1]] for t in found.get(key, [])]
-        out = ["\n% the logic layer's candidates (prove, run by the compiler)"]
-        for i, p in enumerate(sorted(found)):
-            out.append(f"cands_{i} : cands {p} {self._list(found[p])}.")
+            self.model.candidates[c] = [(self.predicates[key], t.name) for t, _h in found.get(key, [])]
+            if key in self.model.hypotheses:
+                self.model.hypotheses[c] = self.model.hypotheses.pop(key)
+        out = ["\n% the logic layer's candidates (prove, run by the compiler), each with its hypotheses"]
+        for i, p in enumerate(sorted(out_lists)):
+            out.append(f"cands_{i} : cands {p} {self._list(out_lists[p])}.")
         return "\n".join(out) + "\n"
+
+    def hypotheses(self, target: tuple, t: a.Task) -> list:
+        """Hypotheses under which task ``t`` may entail the predicate (4.3: "a solution under
+        certain hypotheses"): for a conjunct ``L == R`` of the predicate and a post-condition
+        ``A == B`` of the task sharing a side with it, the missing link of the chain (post
+        ``pos == target``, predicate ``pos == 5``: hypothesis ``target == 5``). The shared side
+        is a variable; only equalities are abduced, one per candidate, never one between two
+        literals."""
+        agent, pred = target
+        lits = (a.IntLit, a.DoubleLit, a.StringLit, a.BoolLit)
+        out = []
+        posts = [self._qualify(x, agent.name) for e in t.post for x in a.conjuncts(e)]
+        for c in a.conjuncts(pred):
+            if not (isinstance(c, a.Binary) and c.op == "=="):
+                continue
+            for q in posts:
+                if not (isinstance(q, a.Binary) and q.op == "=="):
+                    continue
+                for x, y in ((c.left, c.right), (c.right, c.left)):
+                    for u, v in ((q.left, q.right), (q.right, q.left)):
+                        if x == u and isinstance(x, (a.Name, a.Remote)) and v != y \
+                                and not (isinstance(v, lits) and isinstance(y, lits)):
+                            h = a.Binary("==", v, y, pos=c.pos)
+                            self.checked.same_type(h, c)
+                            if h not in out:
+                                out.append(h)
+        return out
 
     def goal_form(self, p: str) -> str:
         """What the logic layer proves for predicate key ``p``: its formula, under the where

@@ -40,6 +40,9 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedInput, UnexpectedTok
 
 from ..errors import Pos, RoarError
 
+#: an empty error context: the logic layer found no task (nothing was tried)
+NO_TASK = "empty: no task of the target agent can handle it (nothing was tried)"
+
 __all__ = ["parse_formula", "looks_like_spec", "Formula", "View", "view_of", "REQUEST_STATUSES",
            "TASK_STATUSES", "SpecChecks", "check_eventually", "check_always"]
 
@@ -955,7 +958,7 @@ class SpecChecks:
             def why(s):
                 from .run import describe_ec
                 ec = views[s].r0_ec
-                ctx = "; ".join(describe_ec(ec, self.model)) if ec is not None else "none recorded"
+                ctx = ("; ".join(describe_ec(ec, self.model)) or NO_TASK) if ec is not None else "none recorded"
                 return f"request R0 ({self.request_text}) fails; error context (most recent first): {ctx}"
             return check_always(g, p, bad, why)
         if p == "mission-completion":
@@ -1028,7 +1031,8 @@ class SpecChecks:
             if f is self.completion:
                 if v.r0 == "failure":
                     from .run import describe_ec
-                    ctx = "; ".join(describe_ec(v.r0_ec, self.model)) if v.r0_ec is not None else "none recorded"
+                    ctx = ("; ".join(describe_ec(v.r0_ec, self.model)) or NO_TASK) if v.r0_ec is not None \
+                        else "none recorded"
                     return f"a run ends with request R0 ({self.request_text}) failed; error context: {ctx}"
                 return f"a run ends with request R0 ({self.request_text}) {v.r0 or 'gone'}, not succeeded"
             return f"a run ends without {goal!r} ({what}): {f.explain(v)}"
