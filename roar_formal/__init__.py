@@ -33,6 +33,9 @@ _PUBLIC = {
     "RunReport": "roar_formal.testing.api",
     "Exploration": "roar_formal.testing.api",
     "Counterexample": "roar_formal.testing.api",
+    "Job": "roar_formal.testing.api",
+    "load_job": "roar_formal.testing.api",
+    "load_jobs": "roar_formal.testing.api",
     "Budget": "roar_formal.explore.search",
     "RoarError": "roar_formal.errors",
 }
@@ -42,8 +45,8 @@ __all__ = ["__version__", *_PUBLIC]
 if TYPE_CHECKING:  # pragma: no cover - for type checkers: the lazy names are these
     from .errors import RoarError
     from .explore.search import Budget
-    from .testing.api import (AgentSpec, ClfModel, ClfRun, Counterexample, Exploration, RunReport, load,
-                              load_clf, load_spec)
+    from .testing.api import (AgentSpec, ClfModel, ClfRun, Counterexample, Exploration, Job, RunReport, load,
+                              load_clf, load_job, load_jobs, load_spec)
 
 
 def __getattr__(name: str) -> Any:

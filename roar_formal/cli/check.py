@@ -9,15 +9,11 @@ from typing import List, Optional
 import typer
 from rich.console import Console
 from rich.live import Live
-from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
 from ..errors import RoarError
 from .console import make_console, show, styled
-
-
-_STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
 
 
 def register(app: typer.Typer) -> None:
@@ -53,8 +49,7 @@ def register(app: typer.Typer) -> None:
         ran out of budget on a property the job expects nothing of (no verdict).
         """
         import math
-        from ..verify.check import run_job, save_counterexample
-        from ..verify.jobs import find_jobs, is_model_path, job_for_model, load_job
+        from ..testing.api import is_model_path, load_jobs, write_html_report
 
         console = make_console(stderr=as_json)
         props = [x.strip() for p in prop for x in p.split(",") if x.strip()]
@@ -66,16 +61,16 @@ def register(app: typer.Typer) -> None:
             raise RoarError(f"--max-states {max_states}: expected a positive number of states")
         if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
             raise RoarError(f"--max-seconds {max_seconds}: expected a positive, finite number of seconds")
-        from ..verify.pictures import check_output_folder, write_pictures
+        from ..verify.pictures import check_output_folder
         outputs = [(png, "--png"), (svg, "--svg"), (dot, "--dot"), (html, "--html")]
         if not no_traces and traces != Path("roar-traces"):   # the default is checked when written
             outputs.append((traces, "--traces"))
         for folder, opt in outputs:
             if folder is not None:   # checked before any work starts
                 check_output_folder(folder, opt, list(paths))
-        files = find_jobs([p for p in paths if not is_model_path(p)]) if len(models) < len(paths) else []
         # every job file is checked before anything runs
-        jobs = [load_job(f) for f in files] + [job_for_model(p, request, props) for p in models]
+        jobs = load_jobs(paths, request=request, properties=props)
+        files = [j.path for j in jobs if not is_model_path(j.path)]
         for job in jobs:   # command-line bounds override the jobs'
             if max_states is not None:
                 job.budget.max_states = max_states
@@ -104,38 +99,34 @@ def register(app: typer.Typer) -> None:
             try:
                 with Live(status["text"], console=console, transient=True,
                           refresh_per_second=4, redirect_stdout=False) as live:
-                    res = run_job(job, progress)
+                    res = job.run(progress)
             except KeyboardInterrupt:
                 console.print(styled(("interrupted: ", "yellow"), f"{status['text']}; no verdict"), soft_wrap=True)
                 raise typer.Exit(130)
             results.append(res)
-            saved = {}
-            if not no_traces:
-                for p, v in res.verdicts.items():
-                    if v.counterexample is not None:
-                        try:
-                            saved[p] = save_counterexample(res, p, traces)
-                        except OSError as exc:
-                            raise RoarError(f"--traces {traces}: cannot write: {exc.strerror or exc}") from None
-            res.saved = saved
-            res.pictures = write_pictures(res, png, svg, dot, tuple(paths) + tuple(files)) \
-                if (png or svg or dot) else {}
+            if no_traces:
+                res.result.saved = {}
+            else:
+                try:
+                    res.save_counterexamples(traces)
+                except OSError as exc:
+                    raise RoarError(f"--traces {traces}: cannot write: {exc.strerror or exc}") from None
+            res.save_pictures(png, svg, dot, tuple(paths) + tuple(files))
             if not as_json:
-                _print_result(console, res, verbose)
+                show(console, res.lines(verbose))
         if html is not None:
-            from ..verify.html import write_html_report
-            page = write_html_report(html, results, [_json(r) for r in results], tuple(paths) + tuple(files))
+            page = write_html_report(html, results, tuple(paths) + tuple(files))
             if not as_json:
                 console.print(f"HTML report: {page}", soft_wrap=True)
         if as_json:
-            print(json.dumps([_json(r) for r in results], indent=2))
+            print(json.dumps([r.as_json() for r in results], indent=2))
         else:
             _summary(console, results)
         if not all(r.ok for r in results):
             raise typer.Exit(1)
         if any(r.incomplete for r in results):   # no violation, but no verdict either: its own exit code
             if not as_json:
-                names = ", ".join(f"{r.job.name} ({', '.join(r.incomplete)})" for r in results if r.incomplete)
+                names = ", ".join(f"{r.name} ({', '.join(r.incomplete)})" for r in results if r.incomplete)
                 console.print(styled(("incomplete: ", "yellow"), f"{names}: a budget ran out before a verdict; "
                                      "raise the job's [bounds] (exit status 4)"), soft_wrap=True)
             raise typer.Exit(4)
@@ -293,28 +284,8 @@ def _interactive_replay(console: Console, rep, verbose: bool) -> None:
             console.print(f"unknown command {cmd!r}; {_REPLAY_HELP}", style="yellow")
 
 
-def _print_result(console: Console, res, verbose: bool) -> None:
-    from ..verify.report import counterexample_lines
-    head = "[green]ok[/]" if res.ok else "[red]UNEXPECTED[/]"  # printed with markup=True
-    g = res.graph
-    console.print(f"{head} [bold]{escape(res.job.name)}[/]  ({g.n_states:,} states, {g.n_edges:,} transitions, "
-                  f"{res.seconds:.2f} s, backend {res.backend})", markup=True)
-    robot = getattr(res, "robot", None)
-    if robot is not None:   # the abstraction is part of every robot-backed verdict: say it
-        console.print(f"  robot: {escape(robot.describe())}", markup=True, soft_wrap=True)
-    for p, v in res.verdicts.items():
-        console.print(f"  {p}: [{_STYLE[v.status]}]{v.status}[/] — {escape(v.message)}", markup=True)
-        if v.counterexample is not None:
-            show(console, counterexample_lines(res, p, verbose))
-    if robot is not None and robot.comparison:
-        console.print("  abstract model vs robot:")
-        for p, a, r, why in robot.comparison:
-            console.print(f"    {p}: abstract {a}, robot {r} — {escape(why)}", markup=True, soft_wrap=True)
-    for m in res.unexpected:
-        console.print(f"  {m}", style="red")
-
-
 def _summary(console: Console, results) -> None:
+    from ..testing.api import STATUS_STYLE
     t = Table(title="verification summary")
     t.add_column("job")
     props = sorted({p for r in results for p in r.verdicts})
@@ -330,43 +301,10 @@ def _summary(console: Console, results) -> None:
             if v is None:
                 cells.append("-")
             else:
-                want = r.job.expect.get(p)
+                want = r.expected(p)
                 mark = "" if want is None or want == v.status else f" (want {want})"
-                cells.append(Text.assemble((v.status, _STYLE[v.status]), mark))
-        t.add_row(r.job.name, *cells, f"{r.graph.n_states:,}", f"{r.seconds:.2f} s",
+                cells.append(Text.assemble((v.status, STATUS_STYLE[v.status]), mark))
+        t.add_row(r.name, *cells, f"{r.states:,}", f"{r.seconds:.2f} s",
                   Text("as expected", style="green") if r.ok and not r.incomplete else
                   Text("incomplete", style="yellow") if r.ok else Text("unexpected", style="red"))
     console.print(t)
-
-
-def _json(r) -> dict:
-    from ..verify.check import counterexample_steps
-    from ..verify.report import counterexample_report
-
-    out = {"job": r.job.name, "file": str(r.job.path), "model": str(r.job.model if not r.job.is_roar else r.job.spec),
-           "ok": r.ok,
-           "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states, "transitions": r.graph.n_edges,
-           "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4), "memory_mb": round(r.memory_mb, 1),
-           "mismatches": r.mismatches, "verdicts": {}}
-    robot = getattr(r, "robot", None)
-    if robot is not None:
-        out["robot"] = {"setup": robot.describe(), "abstraction": robot.abstraction.as_json(),
-                        "horizon_states": robot.horizon_states, **robot.tree.stats(),
-                        "comparison": [{"property": p, "abstract": a, "robot": rv, "why": why}
-                                       for p, a, rv, why in robot.comparison]}
-    for p, v in r.verdicts.items():
-        d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
-        if v.counterexample is not None:
-            rep = counterexample_report(r, p)
-            d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r),
-                                   "report": rep}
-            saved = getattr(r, "saved", {}).get(p)
-            if saved:
-                d["trace"] = str(saved)
-            pics = getattr(r, "pictures", {}).get(p)
-            if pics:
-                d["pictures"] = [str(x) for x in pics if not isinstance(x, str)]
-                d["picture_notes"] = [x for x in pics if isinstance(x, str)]
-        out["verdicts"][p] = d
-    return out
-

@@ -40,62 +40,29 @@ def register(app: typer.Typer) -> None:
         Prints the ROAR-level trace with the simulated time and the robot's pose at each event.
         Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
         """
-        from ..roar.sources import spec_files
-        from ..robot.setup import prepare, split_faults
-        from ..trace.render import event_lines, event_rows
+        from ..testing.api import load_spec
         from .console import show
-        from ..robot.report import draw_sim, write_robot_trace
-        from ..robot.sim import simulate
 
-        spec_ast, model, binding, sc = prepare(spec, request, scenario, functional)
-        world_faults, prim_faults = split_faults(fault, sc, model)
+        spec_obj = load_spec(spec, functional=functional)
         for p in (trace, png):
-            _check_output(p, spec_ast, spec, scenario)
-        console = _console()
-        if not as_json:
-            from rich.text import Text
-            console.print(Text(f"{spec}: request {request} on scenario {sc.name}, seed {seed}"
-                               + (f", faults {', '.join(fault)}" if fault else "")), soft_wrap=True)
-        res = simulate(model, binding.robot, sc, seed=seed, faults=world_faults, prim_faults=prim_faults,
-                       max_steps=max_steps)
-        rules = [st.rule for st in res.run.steps.raw]
+            _check_output(p, spec_obj.ast, spec, scenario)
+        report = spec_obj.run(request, scenario=scenario, seed=seed, faults=fault, max_steps=max_steps,
+                              strict_faults=True)
         if trace is not None:
-            _writing(trace, lambda: write_robot_trace(trace, res, str(spec), request, str(scenario),
-                                                      spec_files(spec_ast)))
+            _writing(trace, lambda: report.save_trace(trace))
         if png is not None:
-            draw_sim(png, res)
-        x, y, th = res.robot.world.base.pose
+            report.save_picture(png)
         if as_json:
-            print(json.dumps({"spec": str(spec), "scenario": str(scenario), "request": request, "seed": seed,
-                              "faults": fault, "outcome": res.outcome, "end": res.end,
-                              "time": round(res.robot.time, 4), "pose": [x, y, th],
-                              "clf_steps": len(res.run.steps), "error_context": res.run.error_context,
-                              "calls": [c.as_json() for c in res.calls],
-                              "uncovered": [c.n for c in res.uncovered()],
-                              "events": [dict(step=e.step, time=round(res.times[e.step - 1], 4), **e.as_json())
-                                         for e in res.events]}, indent=2))
+            print(json.dumps(report.as_json(), indent=2))
         else:
-            show(console, event_lines(event_rows(res.events, res.times, res.poses, rules), verbose=verbose))
             from rich.text import Text
-            end = {"quiescent": "quiescent", "horizon": f"horizon of {sc.horizon:g} s reached",
-                   "max-steps": f"stopped after {max_steps} CLF steps",
-                   "zero-time loop": "stopped: the agents kept stepping without the robot's time advancing, "
-                                     "a loop that calls no primitive taking time"}[res.end]
-            line = Text(f"request {res.outcome}", style="green" if res.ok else "red")
-            line.append(f" at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF steps ({end}); "
-                        f"robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
-            console.print(line, soft_wrap=True)
-            for e in res.run.error_context:
-                console.print(Text(f"  error context: {e}"), soft_wrap=True)
-            for c in res.uncovered():
-                console.print(Text(f"  warning: call {c.n} {c.function}({', '.join(map(str, c.args))}) at "
-                                   f"t = {c.t_end:.2f} s returned {c.result.as_json()}, which no declared outcome "
-                                   f"covers", style="yellow"), soft_wrap=True)
+            console = _console()
+            show(console, report.lines(verbose))
             if trace is not None:
                 console.print(Text(f"trace written to {trace}"))
             if png is not None:
                 console.print(Text(f"picture written to {png}"))
-        if not res.ok:
+        if not report.ok:
             raise typer.Exit(1)
 
     @app.command("conform")
@@ -118,26 +85,21 @@ def register(app: typer.Typer) -> None:
         compiled (abstract) model; an outcome the robot never produced is a warning. Exit status:
         0 when the abstraction is sound for these runs, 1 when it is not, 2 on bad input.
         """
-        from ..robot.setup import prepare, split_faults
         from rich.text import Text
-        from ..robot.conform import conform
+        from ..testing.api import load_spec
 
         if runs < 1 or runs > 10_000:
             raise RoarError(f"--runs {runs}: expected a number of runs from 1 to 10000")
-        spec_ast, model, binding, sc = prepare(spec, request, scenario, functional)
-        world_faults, prim_faults = split_faults(fault, sc, model)
-        if prim_faults:
-            raise RoarError("conform draws the scenario's fault points; primitive faults "
-                            f"({', '.join(map(str, prim_faults))}) are not allowed here")
+        spec_obj = load_spec(spec, functional=functional)
         console = _console()
-        rep = conform(spec_ast, request, model, binding, sc, runs=runs, seed=seed, always=world_faults,
-                      random_faults=not no_random_faults, max_steps=max_steps, spec_name=str(spec),
-                      on_run=None if as_json else
-                      (lambda k, r: console.print(Text(f"  run {k + 1}/{runs}: seed {r.seed}, faults "
-                                                       f"{', '.join(r.faults) or 'none'}: request {r.outcome} at "
-                                                       f"t = {r.time:.2f} s, {r.calls} calls"
-                                                       + (f", DIVERGES at step {r.divergence}" if r.divergence
-                                                          else "")), soft_wrap=True)))
+        rep = spec_obj.conform(request, scenario, runs=runs, seed=seed, faults=fault,
+                               random_faults=not no_random_faults, max_steps=max_steps,
+                               on_run=None if as_json else
+                               (lambda k, r: console.print(Text(f"  run {k + 1}/{runs}: seed {r.seed}, faults "
+                                                                f"{', '.join(r.faults) or 'none'}: request {r.outcome} at "
+                                                                f"t = {r.time:.2f} s, {r.calls} calls"
+                                                                + (f", DIVERGES at step {r.divergence}" if r.divergence
+                                                                   else "")), soft_wrap=True)))
         if as_json:
             print(json.dumps(rep.as_json(), indent=2))
         else:

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.markup import escape
 
 from .console import make_console, show
 from ..errors import RoarError
@@ -40,68 +39,37 @@ def register(app: typer.Typer) -> None:
 
         Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
         """
-        from ..roar.functional import functional_module, load_registry
-        from ..roar.traces import jsonable, write_run_trace
-        from ..roar.compile import compile_spec
-        from ..roar.spec import load_spec
-        from ..roar.run import parse_fault, run_model
-        faults = [parse_fault(f) for f in fault]
-        spec_ast = load_spec(spec)
+        from ..testing.api import load_spec, parse_faults
+        faults = parse_faults(fault)
+        spec_obj = load_spec(spec, functional=functional)
         if png is not None or svg is not None or dot is not None:
             from ..roar.sources import spec_files
             from ..verify.pictures import check_output_file
             for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
                 if path is not None:
-                    check_output_file(path, option, [Path(f) for f in spec_files(spec_ast)] + [Path(spec)])
-        reg = load_registry(functional_module(spec, functional))
-        model = compile_spec(spec_ast, request, registry=reg, functional="python")
+                    check_output_file(path, option, [Path(f) for f in spec_files(spec_obj.ast)] + [Path(spec)])
+        spec_obj.compile(request, "python")   # a bad request is reported before anything is printed
         console = make_console()
+        report = spec_obj.run(request, seed=seed, faults=faults, max_steps=max_steps, fair=fair, strict_faults=True)
         if not as_json:
-            console.print(f"[bold]{escape(str(spec))}[/]: request [cyan]{escape(request)}[/]"
-                          + (f", faults {escape(', '.join(fault))}" if fault else "") + f", seed {seed}", markup=True)
-
-        res = run_model(model, seed=seed, max_steps=max_steps, registry=reg, faults=faults, fair=fair)
-        rules = [s[0] for s in res.steps]
-        if not as_json:   # the one step table of run, simulate and replay (trace/render.py)
-            from ..trace.render import event_lines, event_rows
-            show(console, event_lines(event_rows(res.events, rules=rules), verbose=verbose))
+            show(console, report.header_lines())
+            show(console, report.event_lines(verbose))   # the one step table of run, simulate and replay
         if trace is not None:
-            _writing(trace, lambda: write_run_trace(trace, res, spec, request, seed, fault,
-                                                   functional_module(spec, functional)))
-        drawn = []
-        if png is not None or svg is not None:
-            from ..verify.pictures import write_chart
-            from ..verify.report import run_report
-            drawn = write_chart(run_report(res), f"{Path(spec).name}: request {request}: {res.outcome}",
-                                f"the run of {request}", png, svg)
+            _writing(trace, lambda: report.save_trace(trace))
+        drawn = report.save_chart(png, svg) if png is not None or svg is not None else []
         if dot is not None:
-            from ..roar.traces import run_records
-            from ..tca.roar_runs import task_tree_events
-            from ..tca.tree_dot import task_tree_dot
-            from ..trace.format import write_atomic
-            header, records = run_records(res, spec, request, seed, fault, functional_module(spec, functional))
-            text = task_tree_dot(task_tree_events(header, records),
-                                 f"{Path(spec).name}: request {request}: {res.outcome}")
-            _writing(dot, lambda: write_atomic(dot, text))
+            _writing(dot, lambda: report.save_task_tree(dot))
         if as_json:
-            print(json.dumps({"spec": str(spec), "request": request, "seed": seed, "faults": fault,
-                              "outcome": res.outcome, "quiescent": res.quiescent, "clf_steps": len(res.steps),
-                              "error_context": res.error_context, "final": {k: jsonable(v) for k, v in res.final.items()},
-                              "events": [dict(step=e.step, **e.as_json()) for e in res.events]}, indent=2))
+            print(json.dumps(report.as_json(), indent=2))
         else:
-            style = "green" if res.ok else "red"
-            end = "quiescent" if res.quiescent else f"stopped after {max_steps} steps"
-            console.print(f"[{style}]request {escape(res.outcome)}[/] after {len(res.steps)} CLF steps ({end})",
-                          markup=True)
-            for line in res.error_context:
-                console.print(f"  error context: {line}")
+            show(console, report.end_lines())
             if trace is not None:
                 console.print(f"trace written to {trace}")
             for path in drawn:
                 console.print(f"chart written to {path}")
             if dot is not None:
                 console.print(f"task tree written to {dot}")
-        if not res.ok:
+        if not report.ok:
             raise typer.Exit(1)
 
     @app.command("compile")
@@ -115,14 +83,12 @@ def register(app: typer.Typer) -> None:
 
         Primitives become their declared outcome rules, so `roar-verify clf` runs the result.
         """
-        from ..roar.functional import functional_module, load_registry
+        from ..testing.api import load_spec
         from ..trace.format import write_atomic
-        from ..roar.compile import compile_spec
-        from ..roar.spec import load_spec
         from ..roar.ast import walk
-        reg = load_registry(functional_module(spec, functional))
-        spec_ast = load_spec(spec)
-        model = compile_spec(spec_ast, request, registry=reg, functional="abstract")
+        spec_obj = load_spec(spec, functional=functional)
+        spec_ast = spec_obj.ast
+        model = spec_obj.compile(request, "abstract")
         if output is None:
             sys.stdout.write(model.text)
         else:

@@ -49,7 +49,8 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 __all__ = [
     "AgentSpec", "ClfModel", "ClfRun", "Counterexample", "Exploration", "RunReport", "Budget", "RoarError",
-    "load", "load_spec", "load_clf", "as_budget", "ROAR_PROPERTIES", "CLF_PROPERTIES",
+    "Job", "load", "load_spec", "load_clf", "load_job", "load_jobs", "is_model_path", "parse_faults", "as_budget",
+    "write_html_report", "ROAR_PROPERTIES", "CLF_PROPERTIES",
 ]
 
 PathLike = Union[str, Path]
@@ -107,6 +108,13 @@ def as_budget(budget: BudgetLike) -> Budget:
     if unknown:
         raise RoarError(f"unknown budget key {sorted(unknown)[0]!r}; expected one of: {', '.join(sorted(keys))}")
     return Budget(**dict(budget))
+
+
+def parse_faults(faults: Iterable[FaultLike]) -> list["Fault"]:
+    """``--fault`` values (``NAME``, ``NAME:K``, ``NAME=OUTCOME``) as faults; a malformed one is a
+    :class:`RoarError` saying the expected form. Fault objects pass through."""
+    from ..roar.run import parse_fault
+    return [f if not isinstance(f, str) else parse_fault(f) for f in faults]
 
 
 # Specs and models given as text live in one temporary folder of the process: the explorer
@@ -173,6 +181,7 @@ class AgentSpec:
         self.text = text
         self.name = name or (str(self.path) if self.path is not None else "<spec>")
         self._compiled: dict[tuple[str, str], "CompiledModel"] = {}
+        self._spare: Optional["Registry"] = None
 
     # -- construction -------------------------------------------------------------
     @classmethod
@@ -223,9 +232,15 @@ class AgentSpec:
         key = (request, mode)
         model = self._compiled.get(key)
         if model is None:
-            model = self._compiled[key] = compile_spec(self.ast, request, registry=self.registry(),
-                                                       functional=mode)
+            reg = self.registry()
+            model = self._compiled[key] = compile_spec(self.ast, request, registry=reg, functional=mode)
+            self._spare = reg   # unused by any run yet: the next run takes it (the module runs once)
         return model
+
+    def _run_registry(self) -> Optional["Registry"]:
+        """A registry no run has used: the one the last compile built, else a fresh one."""
+        reg, self._spare = self._spare, None
+        return reg if reg is not None else self.registry()
 
     # -- running -----------------------------------------------------------------------
     def run(self, request: str, *, seed: int = 0, faults: Iterable[FaultLike] = (), max_steps: int = 100_000,
@@ -238,18 +253,17 @@ class AgentSpec:
         ``strict_faults`` (the command line's behaviour); otherwise it is listed in
         ``RunReport.unused_faults``: a generated fault schedule may name calls a run never makes.
         """
-        from ..roar.run import parse_fault
+        texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
         if scenario is not None:
-            return self._simulate(request, Path(scenario), seed, list(faults), max_steps, strict_faults)
-        given = [f if not isinstance(f, str) else parse_fault(f) for f in faults]
-        wanted = list(dict.fromkeys(given))
+            return self._simulate(request, Path(scenario), seed, texts, max_steps, strict_faults)
+        wanted = list(dict.fromkeys(parse_faults(texts)))
         model = self.compile(request, "python")
-        res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self.registry(), fs, fair),
+        res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self._run_registry(), fs, fair),
                                     wanted, strict_faults)
-        return RunReport(self.name, request, seed, tuple(str(f) for f in wanted), res, max_steps,
-                         tuple(str(f) for f in unused))
+        return RunReport(self.name, request, seed, tuple(texts), res, max_steps,
+                         tuple(str(f) for f in unused), functional=self.functional)
 
-    def _simulate(self, request: str, scenario: Path, seed: int, faults: list, max_steps: int,
+    def _simulate(self, request: str, scenario: Path, seed: int, faults: list[str], max_steps: int,
                   strict_faults: bool) -> "RunReport":
         from ..roar.compile import compile_spec
         from ..robot.binding import load_robot_binding
@@ -261,19 +275,21 @@ class AgentSpec:
         sc = load_scenario(scenario)
         binding = load_robot_binding(self._file(), self.functional)
         model = compile_spec(self.ast, request, registry=binding.robot, functional="python")
-        world, prims = split_faults([str(f) for f in faults], sc, model)
+        world, prims = split_faults(faults, sc, model)
         wanted = list(dict.fromkeys(prims))
         sim_box: list = []
+        fresh = [binding]   # the first run uses the binding loaded above; a second one gets its own robot layer
 
         def go(fs):
-            sim = simulate(model, load_robot_binding(self._file(), self.functional).robot, sc, seed=seed,
-                           faults=world, prim_faults=fs, max_steps=max_steps)
+            b = fresh.pop() if fresh else load_robot_binding(self._file(), self.functional)
+            sim = simulate(model, b.robot, sc, seed=seed, faults=world, prim_faults=fs, max_steps=max_steps)
             sim_box[:] = [sim]
             return sim.run
 
         res, unused = _run_tolerant(go, wanted, strict_faults)
-        return RunReport(self.name, request, seed, tuple(world) + tuple(str(f) for f in wanted), res, max_steps,
-                         tuple(str(f) for f in unused), robot=sim_box[0], scenario=sc, scenario_path=scenario)
+        return RunReport(self.name, request, seed, tuple(faults), res, max_steps,
+                         tuple(str(f) for f in unused), robot=sim_box[0], scenario=sc, scenario_path=scenario,
+                         functional=binding.path)
 
     # -- exploring ---------------------------------------------------------------------
     def explore(self, request: str, properties: Sequence[str] = ("deadlock", "livelock"), *,
@@ -347,10 +363,12 @@ class AgentSpec:
 
     # -- on the robot --------------------------------------------------------------------
     def conform(self, request: str, scenario: PathLike, *, runs: int = 3, seed: int = 0, faults: Sequence[str] = (),
-                random_faults: bool = True, max_steps: int = 200_000) -> Any:
+                random_faults: bool = True, max_steps: int = 200_000, on_run: Optional[Any] = None) -> Any:
         """``roar-verify conform``: seeded robot runs, each result classified into a declared outcome
         and each run replayed on the model; returns the robot's ``ConformReport`` (``.sound``,
-        ``.lines()``)."""
+        ``.lines()``, ``.as_json()``). ``faults`` are scenario fault points always on (the others are
+        drawn at random unless ``random_faults`` is false); ``on_run(k, summary)`` is called after
+        run ``k`` (from 0)."""
         from ..roar.compile import compile_spec
         from ..robot.binding import load_robot_binding
         from ..robot.setup import split_faults
@@ -366,7 +384,7 @@ class AgentSpec:
             raise RoarError("conform draws the scenario's fault points; primitive faults "
                             f"({', '.join(map(str, prims))}) are not allowed here")
         return conform(self.ast, request, model, binding, sc, runs=runs, seed=seed, always=world,
-                       random_faults=random_faults, max_steps=max_steps, spec_name=self.name)
+                       random_faults=random_faults, max_steps=max_steps, spec_name=self.name, on_run=on_run)
 
 
 def _run_model(model: "CompiledModel", seed: int, max_steps: int, registry: Optional["Registry"], faults: list,
@@ -422,6 +440,91 @@ def _explore(job) -> "Exploration":
     return Exploration(run_job(job))
 
 
+#: the style of each verdict status, where the command line shows it
+STATUS_STYLE = {"holds": "green", "violated": "red", "incomplete": "yellow"}
+
+
+def _verdict_line(prop: str, v: "Verdict") -> Lines:
+    return Lines().add(f"  {prop}: ", (v.status, STATUS_STYLE.get(v.status, "")), f" — {v.message}", wrap=True)
+
+
+# ---------------------------------------------------------------------------- job files
+
+
+class Job:
+    """A verification job (docs/checking.md): a job file (``*.toml``), or a model or spec named
+    directly with its properties, as ``roar-verify check`` takes them. :meth:`run` explores it.
+    ``budget`` is the job's :class:`Budget` (its ``[bounds]``), which may be changed before running."""
+
+    def __init__(self, job: Any):
+        self.job = job    # the verify.jobs.Job
+
+    @property
+    def name(self) -> str:
+        return self.job.name
+
+    @property
+    def path(self) -> Path:
+        return self.job.path
+
+    @property
+    def budget(self) -> Budget:
+        return self.job.budget
+
+    @property
+    def expect(self) -> dict[str, str]:
+        """property -> expected status (the job's ``[expect]``)."""
+        return self.job.expect
+
+    @property
+    def properties(self) -> list[str]:
+        return list(self.job.props.check)
+
+    def run(self, progress: Optional[Any] = None) -> Exploration:
+        """Explore: the verdicts and counterexamples. ``progress(stats)`` is called now and then with
+        ``states``, ``transitions``, ``states_per_s``, ``frontier``, ``memory_mb``."""
+        from ..verify.check import run_job
+        return Exploration(run_job(self.job, progress))
+
+    def __repr__(self) -> str:
+        return f"<Job {self.name} ({self.path}): {', '.join(self.properties)}>"
+
+
+def is_model_path(path: PathLike) -> bool:
+    """Is ``path`` a model or spec to check directly (a ``.clf``, ``.roar``, ``.ability`` file or a
+    hyper folder), not a job file or a folder of them?"""
+    from ..verify.jobs import is_model_path as model_path
+    return model_path(Path(path))
+
+
+def load_job(path: PathLike) -> Job:
+    """A job file, read and checked (every mistake located)."""
+    from ..verify.jobs import load_job as read_job
+    return Job(read_job(Path(path)))
+
+
+def load_jobs(paths: Sequence[PathLike], *, request: Optional[str] = None,
+              properties: Sequence[str] = ()) -> list[Job]:
+    """What ``roar-verify check PATH...`` checks: job files, the job files of folders (sorted), and
+    models or specs named directly (checked for ``properties``, a spec on ``request``). Every job is
+    read and checked before any runs."""
+    from ..verify.jobs import find_jobs, job_for_model
+    from ..verify.jobs import load_job as read_job
+    ps = [Path(p) for p in paths]
+    models = [p for p in ps if is_model_path(p)]
+    files = find_jobs([p for p in ps if not is_model_path(p)]) if len(models) < len(ps) else []
+    return [Job(read_job(f)) for f in files] + [Job(job_for_model(p, request, list(properties))) for p in models]
+
+
+def write_html_report(folder: PathLike, explorations: Sequence[Exploration], inputs: Sequence[PathLike] = ()) -> Path:
+    """An HTML report of explorations (``roar-verify check --html``): the summary, each verdict and
+    counterexample, its chart and its trace; the path of its ``index.html``. A file in ``inputs`` is
+    never overwritten."""
+    from ..verify.html import write_html_report as write_html
+    return write_html(Path(folder), [e.result for e in explorations], [e.as_json() for e in explorations],
+                      tuple(inputs))
+
+
 # ---------------------------------------------------------------------------- runs
 
 
@@ -429,19 +532,21 @@ def _explore(job) -> "Exploration":
 class RunReport:
     """One run of a spec on a request: its outcome, ROAR-level events and final values.
 
-    ``str(report)`` is the trace ``roar-verify run`` prints (``simulate`` on the robot).
+    ``str(report)`` is what ``roar-verify run`` prints (``simulate`` on the robot); the command
+    line prints :meth:`lines`, the same document with its styles.
     """
 
     spec: str
     request: str
     seed: int
-    faults: tuple[str, ...]
+    faults: tuple[str, ...]              # as given (``--fault`` values, scenario fault points on the robot)
     result: "RunResult"
     max_steps: int
     unused_faults: tuple[str, ...] = ()
     robot: Any = None        # the robot's SimResult, for a run on a scenario
     scenario: Any = None     # its Scenario
     scenario_path: Optional[Path] = None
+    functional: Optional[Path] = None    # the functional-layer module the run used (named in its trace)
 
     @property
     def outcome(self) -> str:
@@ -473,31 +578,62 @@ class RunReport:
     def clf_steps(self) -> int:
         return len(self.result.steps)
 
-    def format(self, verbose: bool = False) -> str:
-        """The run as the command line prints it (the step table of ``trace.render``);
-        ``verbose`` adds each event's CLF rule."""
-        from ..trace.render import event_lines, event_rows
-        out = Lines()
+    # -- printing: the command line prints these lines ---------------------------------
+    def header_lines(self) -> Lines:
+        """The first line: spec, request (and scenario), faults, seed."""
         faults = f", faults {', '.join(self.faults)}" if self.faults else ""
         if self.robot is not None:
+            return Lines().add(f"{self.spec}: request {self.request} on scenario {self.scenario.name}, "
+                               f"seed {self.seed}{faults}")
+        return Lines().add((self.spec, "bold"), ": request ", (self.request, "cyan"), f"{faults}, seed {self.seed}",
+                           wrap=True)
+
+    def event_lines(self, verbose: bool = False) -> Lines:
+        """The step table of ``trace.render`` (with time and pose on the robot); ``verbose`` adds
+        each event's CLF rule."""
+        from ..trace.render import event_lines, event_rows
+        if self.robot is not None:
             res = self.robot
-            out.add(f"{self.spec}: request {self.request} on scenario {self.scenario.name}, seed {self.seed}{faults}")
-            rules = [st.rule for st in res.run.steps.raw]
-            out.extend(event_lines(event_rows(res.events, res.times, res.poses, rules), verbose=verbose))
+            return event_lines(event_rows(res.events, res.times, res.poses, [st.rule for st in res.run.steps.raw]),
+                               verbose=verbose)
+        return event_lines(event_rows(self.events, rules=[s[0] for s in self.result.steps]), verbose=verbose)
+
+    def end_lines(self) -> Lines:
+        """How the run ended, its error context, and warnings (unused faults; on the robot, results
+        no declared outcome covers)."""
+        out = Lines()
+        style = "green" if self.ok else "red"
+        if self.robot is not None:
+            res = self.robot
+            end = {"quiescent": "quiescent", "horizon": f"horizon of {self.scenario.horizon:g} s reached",
+                   "max-steps": f"stopped after {self.max_steps} CLF steps",
+                   "zero-time loop": "stopped: the agents kept stepping without the robot's time advancing, "
+                                     "a loop that calls no primitive taking time"}.get(res.end, res.end)
             x, y, th = res.robot.world.base.pose
-            out.add(f"request {res.outcome} at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF "
-                    f"steps ({res.end}); robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
+            out.add((f"request {res.outcome}", style),
+                    f" at t = {res.robot.time:.2f} s after {len(res.run.steps)} CLF steps ({end}); "
+                    f"robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
+            for e in self.error_context:
+                out.add(f"  error context: {e}")
+            for c in res.uncovered():
+                out.add(f"  warning: call {c.n} {c.function}({', '.join(map(str, c.args))}) at t = {c.t_end:.2f} s "
+                        f"returned {c.result.as_json()}, which no declared outcome covers", style="yellow")
         else:
-            out.add(f"{self.spec}: request {self.request}{faults}, seed {self.seed}")
-            rules = [s[0] for s in self.result.steps]
-            out.extend(event_lines(event_rows(self.events, rules=rules), verbose=verbose))
             end = "quiescent" if self.quiescent else f"stopped after {self.max_steps} steps"
-            out.add(f"request {self.outcome} after {self.clf_steps} CLF steps ({end})")
-        for line in self.error_context:
-            out.add(f"  error context: {line}")
+            out.add((f"request {self.outcome}", style), f" after {self.clf_steps} CLF steps ({end})", wrap=True)
+            for line in self.error_context:
+                out.add(f"  error context: {line}", wrap=True)
         if self.unused_faults:
-            out.add(f"  faults that matched no call: {', '.join(self.unused_faults)}")
-        return out.text()
+            out.add(f"  faults that matched no call: {', '.join(self.unused_faults)}", style="yellow")
+        return out
+
+    def lines(self, verbose: bool = False) -> Lines:
+        """The whole run as the command line prints it."""
+        return self.header_lines().extend(self.event_lines(verbose)).extend(self.end_lines())
+
+    def format(self, verbose: bool = False) -> str:
+        """The run as the command line prints it, as plain text."""
+        return self.lines(verbose).text()
 
     def __str__(self) -> str:
         return self.format()
@@ -511,8 +647,28 @@ class RunReport:
             raise RoarError(f"no variable {var!r}; the variables are: {', '.join(sorted(self.final))}")
         return self.final[var]
 
+    def as_json(self) -> dict:
+        """The run as ``roar-verify run --json`` (``simulate --json`` on the robot) prints it."""
+        if self.robot is not None:
+            res = self.robot
+            x, y, th = res.robot.world.base.pose
+            return {"spec": self.spec, "scenario": str(self.scenario_path), "request": self.request,
+                    "seed": self.seed, "faults": list(self.faults), "outcome": res.outcome, "end": res.end,
+                    "time": round(res.robot.time, 4), "pose": [x, y, th], "clf_steps": len(res.run.steps),
+                    "error_context": res.run.error_context, "calls": [c.as_json() for c in res.calls],
+                    "uncovered": [c.n for c in res.uncovered()],
+                    "events": [dict(step=e.step, time=round(res.times[e.step - 1], 4), **e.as_json())
+                               for e in res.events]}
+        from ..roar.traces import jsonable
+        return {"spec": self.spec, "request": self.request, "seed": self.seed, "faults": list(self.faults),
+                "outcome": self.outcome, "quiescent": self.quiescent, "clf_steps": self.clf_steps,
+                "error_context": self.error_context, "final": {k: jsonable(v) for k, v in self.final.items()},
+                "events": [dict(step=e.step, **e.as_json()) for e in self.events]}
+
+    # -- files ----------------------------------------------------------------------------
     def save_trace(self, path: PathLike) -> Path:
-        """Write the run as a JSON Lines trace (the format of ``roar-verify run --trace``)."""
+        """Write the run as a JSON Lines trace (the format of ``roar-verify run --trace``,
+        ``simulate --trace`` on the robot): ``roar-verify replay`` reads it."""
         from ..roar.traces import write_run_trace
         p = Path(path)
         if self.robot is not None:
@@ -521,8 +677,38 @@ class RunReport:
             write_robot_trace(p, self.robot, self.spec, self.request, str(self.scenario_path),
                               spec_files(self.result.model.spec))
         else:
-            write_run_trace(p, self.result, self.spec, self.request, self.seed, list(self.faults))
+            write_run_trace(p, self.result, self.spec, self.request, self.seed, list(self.faults), self.functional)
         return p
+
+    def save_chart(self, png: Optional[PathLike] = None, svg: Optional[PathLike] = None) -> list[Path]:
+        """Draw the run's message sequence chart into the PNG and SVG files asked for; the paths
+        written. (On the robot, :meth:`save_picture` draws the map and the trajectory.)"""
+        from ..verify.pictures import write_chart
+        from ..verify.report import run_report
+        return write_chart(run_report(self.result), f"{Path(self.spec).name}: request {self.request}: {self.outcome}",
+                           f"the run of {self.request}", None if png is None else Path(png),
+                           None if svg is None else Path(svg))
+
+    def save_task_tree(self, path: PathLike) -> Path:
+        """Write the run's task tree (goals, commands, sequential-achievement constraints) as DOT."""
+        from ..roar.traces import run_records
+        from ..tca.roar_runs import task_tree_events
+        from ..tca.tree_dot import task_tree_dot
+        from ..trace.format import write_atomic
+        header, records = run_records(self.result, self.spec, self.request, self.seed, list(self.faults),
+                                      self.functional)
+        p = Path(path)
+        write_atomic(p, task_tree_dot(task_tree_events(header, records),
+                                      f"{Path(self.spec).name}: request {self.request}: {self.outcome}"))
+        return p
+
+    def save_picture(self, path: PathLike) -> Path:
+        """On the robot: draw the map, the planned paths and the trajectory (PNG)."""
+        if self.robot is None:
+            raise RoarError("a picture of the robot needs a run on a scenario (run(..., scenario=...))")
+        from ..robot.report import draw_sim
+        draw_sim(Path(path), self.robot)
+        return Path(path)
 
 
 # ---------------------------------------------------------------------------- exploration
@@ -576,13 +762,16 @@ class Counterexample:
         r.saved = saved
         return path
 
+    def lines(self, verbose: bool = False) -> Lines:
+        """The verdict line and the counterexample, as ``roar-verify check`` prints them (styled);
+        ``verbose`` adds the facts each step consumed and produced."""
+        from ..verify.report import counterexample_lines
+        out = _verdict_line(self.prop, self.verdict)
+        return out.extend(counterexample_lines(self.exploration.result, self.prop, verbose))
+
     def format(self, verbose: bool = False) -> str:
         """The verdict line and the counterexample, as ``roar-verify check`` prints them."""
-        from ..verify.report import counterexample_lines
-        v = self.verdict
-        out = Lines().add(f"  {self.prop}: {v.status} — {v.message}")
-        out.extend(counterexample_lines(self.exploration.result, self.prop, verbose))
-        return out.text()
+        return self.lines(verbose).text()
 
     def __str__(self) -> str:
         return self.format()
@@ -652,6 +841,34 @@ class Exploration:
     def backend(self) -> str:
         return self.result.backend
 
+    @property
+    def memory_mb(self) -> float:
+        return self.result.memory_mb
+
+    @property
+    def ok(self) -> bool:
+        """Every verdict as the job expects (with no expectation: no violation)."""
+        return self.result.ok
+
+    @property
+    def incomplete(self) -> list[str]:
+        """Properties the job expects nothing of whose search ran out of budget: no verdict."""
+        return self.result.incomplete
+
+    @property
+    def unexpected(self) -> list[str]:
+        """Why the job fails: verdicts other than the expected ones, violations nothing was expected of."""
+        return self.result.unexpected
+
+    def expected(self, prop: str) -> Optional[str]:
+        """The verdict the job expects of ``prop`` (its ``[expect]``), or None."""
+        return self.result.job.expect.get(prop)
+
+    @property
+    def robot(self) -> Any:
+        """For a robot-backed exploration, its robot run (``describe()``, ``comparison``); else None."""
+        return getattr(self.result, "robot", None)
+
     def save_counterexamples(self, folder: PathLike) -> dict[str, Path]:
         """Save every counterexample's trace into ``folder``; property -> path."""
         out = {}
@@ -659,19 +876,86 @@ class Exploration:
             cx = self.counterexample(p)
             if cx is not None:
                 out[p] = cx.save(folder)
+        self.result.saved = out
         return out
 
-    def format(self, verbose: bool = False) -> str:
-        """Statistics, then each verdict with its counterexample, as ``roar-verify check`` prints a job."""
-        g = self.result.graph
-        job = self.result.job
-        what = f"{self.name}: request {job.request}" if job.is_roar else self.name
-        lines = [f"{what}  ({g.n_states:,} states, {g.n_edges:,} transitions, {self.seconds:.2f} s, "
-                 f"backend {self.backend})"]
+    def save_pictures(self, png: Optional[PathLike] = None, svg: Optional[PathLike] = None,
+                      dot: Optional[PathLike] = None, inputs: Sequence[PathLike] = ()) -> dict[str, list]:
+        """A message sequence chart (PNG, SVG) and the state graph (DOT) of each counterexample, one
+        file per property in each folder given; property -> paths (and notes saying why a DOT file
+        was not written). A file in ``inputs`` is never overwritten."""
+        from ..verify.pictures import write_pictures
+        pics = write_pictures(self.result, None if png is None else Path(png), None if svg is None else Path(svg),
+                              None if dot is None else Path(dot), tuple(inputs)) if (png or svg or dot) else {}
+        self.result.pictures = pics
+        return pics
+
+    def as_json(self) -> dict:
+        """The job as ``roar-verify check --json`` prints it (one element of its list)."""
+        from ..verify.check import counterexample_steps
+        from ..verify.report import counterexample_report
+        r = self.result
+        out = {"job": r.job.name, "file": str(r.job.path),
+               "model": str(r.job.model if not r.job.is_roar else r.job.spec), "ok": r.ok,
+               "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states,
+               "transitions": r.graph.n_edges, "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4),
+               "memory_mb": round(r.memory_mb, 1), "mismatches": r.mismatches, "verdicts": {}}
+        robot = self.robot
+        if robot is not None:
+            out["robot"] = {"setup": robot.describe(), "abstraction": robot.abstraction.as_json(),
+                            "horizon_states": robot.horizon_states, **robot.tree.stats(),
+                            "comparison": [{"property": p, "abstract": av, "robot": rv, "why": why}
+                                           for p, av, rv, why in robot.comparison]}
+        for p, v in r.verdicts.items():
+            d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
+            if v.counterexample is not None:
+                d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r),
+                                       "report": counterexample_report(r, p)}
+                saved = getattr(r, "saved", {}).get(p)
+                if saved:
+                    d["trace"] = str(saved)
+                pics = getattr(r, "pictures", {}).get(p)
+                if pics:
+                    d["pictures"] = [str(x) for x in pics if not isinstance(x, str)]
+                    d["picture_notes"] = [x for x in pics if isinstance(x, str)]
+            out["verdicts"][p] = d
+        return out
+
+    def _stats(self) -> str:
+        return (f"({self.states:,} states, {self.transitions:,} transitions, {self.seconds:.2f} s, "
+                f"backend {self.backend})")
+
+    def verdict_lines(self, verbose: bool = False, unexpected: bool = True) -> Lines:
+        """Each verdict with its counterexample (and, robot-backed, the abstract model's verdicts
+        beside the robot's; with ``unexpected``, then why the job fails)."""
+        out = Lines()
+        robot = self.robot
+        if robot is not None:   # the abstraction is part of every robot-backed verdict: say it
+            out.add(f"  robot: {robot.describe()}")
         for p, v in self.verdicts.items():
             cx = self.counterexample(p)
-            lines.append(cx.format(verbose) if cx is not None else f"  {p}: {v.status} — {v.message}")
-        return "\n".join(lines)
+            out.extend(cx.lines(verbose) if cx is not None else _verdict_line(p, v))
+        if robot is not None and robot.comparison:
+            out.add("  abstract model vs robot:", wrap=True)
+            for p, verdict_a, verdict_r, why in robot.comparison:
+                out.add(f"    {p}: abstract {verdict_a}, robot {verdict_r} — {why}")
+        for m in (self.result.unexpected if unexpected else ()):
+            out.add(f"  {m}", style="red", wrap=True)
+        return out
+
+    def lines(self, verbose: bool = False) -> Lines:
+        """The job as ``roar-verify check`` prints it: ``ok`` (or ``UNEXPECTED``), the job's name
+        and statistics, then :meth:`verdict_lines`."""
+        head = ("ok", "green") if self.ok else ("UNEXPECTED", "red")
+        out = Lines().add(head, " ", (self.name, "bold"), f"  {self._stats()}", wrap=True)
+        return out.extend(self.verdict_lines(verbose))
+
+    def format(self, verbose: bool = False) -> str:
+        """Statistics, then each verdict with its counterexample, as ``roar-verify check`` prints a
+        job; the first line names what was explored (``str(exploration)``)."""
+        job = self.result.job
+        what = f"{self.name}: request {job.request}" if job.is_roar else self.name
+        return Lines().add(f"{what}  {self._stats()}").extend(self.verdict_lines(verbose, unexpected=False)).text()
 
     def __str__(self) -> str:
         return self.format()

@@ -29,8 +29,22 @@ events of that run as ``roar-verify check`` prints a counterexample::
 
     TestPick = PickMachine.TestCase
 
-Driving the reference robot in lockstep with the model is not done here
-(docs/testing.md, "Not yet available").
+With a ``scenario``, the machine drives the model and the reference robot in
+lockstep (docs/robot.md): the spec runs with its primitives on the robot
+(``robot.explore.RobotSystem``: the agents' steps take no time; when they are
+quiescent, pending calls are launched on the robot, in an order and with fault
+points armed as hypothesis draws, or the physics advances until a call ends).
+Every step is taken on the model too: an agent step is the model's step with
+the same rule, and each answer of the robot is the model's outcome step of the
+declared outcome the robot's result falls into. The two disagree, and the test
+fails at that step, when the robot produces a result no declared outcome
+covers, or takes a step the model cannot take::
+
+    class PairOnRobot(RoarMachine):
+        spec = load_spec("pair.roar")
+        request = "mission::done == true"
+        scenario = "pair.toml"
+        faults = ["blind", "spill"]       # fault points the machine may arm at a launch
 """
 
 from __future__ import annotations
@@ -89,6 +103,7 @@ class _Setup:
         # again and again, so successors and enabled steps are cached by path
         self.states: dict[tuple, tuple] = {}
         self.moves: dict[tuple, list] = {}
+        self.lock = _Lockstep(cls, self) if cls.scenario is not None else None
 
     def outcome_of(self, rule_name: str) -> Optional[str]:
         """``f -> OUTCOME`` for a step that answers a pending call of f, else None."""
@@ -123,6 +138,147 @@ class _Setup:
         cache[key] = value
 
 
+class _Lockstep:
+    """The robot side of a machine with a ``scenario``: the spec compiled in run mode, stepped with
+    the reference robot as its functional layer, each step mirrored on the model of ``_Setup``."""
+
+    def __init__(self, cls: type["RoarMachine"], setup: _Setup):
+        from ..explore.system import Options
+        from ..roar.compile import compile_spec
+        from ..roar.explore import PROGRESS_RULES
+        from ..robot.binding import load_robot_binding
+        from ..robot.explore import FaultChoices, RobotSystem, RobotTree
+        from ..robot.scenario import did_you_mean, load_scenario
+        spec = setup.spec
+        pos = _class_pos(cls)
+        if spec.text is not None and spec.functional is None:
+            raise RoarError(f"{cls.__name__}: a spec given as text has no functional-layer module to bind to the "
+                            f"robot; pass functional=... to AgentSpec.from_text", pos)
+        self.scenario = load_scenario(Path(cls.scenario))
+        faults = cls.faults
+        if isinstance(faults, dict):
+            fault_at = {n: None if at is None else frozenset([at] if isinstance(at, str) else at)
+                        for n, at in faults.items()}
+        else:
+            fault_at = {n: None for n in ([faults] if isinstance(faults, str) else faults)}
+        on = [cls.on] if isinstance(cls.on, str) else list(cls.on)
+        for n in [*fault_at, *on]:
+            if n not in self.scenario.faults:
+                known = ", ".join(self.scenario.faults) or "none"
+                raise RoarError(f"{cls.__name__}: fault point '{n}' is not in scenario '{self.scenario.name}'"
+                                f"{did_you_mean(n, self.scenario.faults)}; its fault points: {known}", pos)
+        binding = load_robot_binding(spec._file(), spec.functional)
+        self.registry = binding.robot
+        self.model = compile_spec(spec.ast, cls.request, registry=binding.robot, functional="python")
+        program = self.model.program()
+        start = program.start_context(next(d for d in program.sig.directives if hasattr(d, "start")).start)
+        self.tree = RobotTree(self.model, binding.robot, self.scenario, int(cls.seed), tuple(on))
+        self.system = RobotSystem(self.model, start, self.tree, FaultChoices(fault_at),
+                                  Options(progress_rules=PROGRESS_RULES, fairness="agent"))
+        self.start = self.system.initial()
+        self.setup = setup
+        self.moves: dict[tuple, list] = {}
+        self.steps: dict[tuple, tuple] = {}
+
+    def enabled(self, path: tuple, rstate: Any) -> list:
+        """(choice or robot successor, agent or "robot", None or the robot step's label) of ``rstate``:
+        the agents' enabled steps, or (when they are quiescent) the robot's launches and advance."""
+        from ..robot.explore import ROBOT_GROUP
+        out = self.moves.get(path)
+        if out is None:
+            choices = [] if rstate.node.at_horizon else self.system.program.steps(rstate.ctx)
+            if choices:
+                out = [(c, self.system.agent_of(c, rstate.ctx), None) for c in choices]
+            else:
+                out = [(succ, ROBOT_GROUP, _robot_label(succ)) for succ in self.system.successors(rstate)]
+            _Setup._remember(self.moves, path, out)
+        return out
+
+    def successor(self, path: tuple, rstate: Any, k: int, state: Any) -> tuple:
+        """Step ``k`` of ``rstate`` on the robot and on the model (in ``state``): (robot state, robot
+        step or None, [(model state, model step, rule)] mirrored, disagreement or None)."""
+        key = path + (k,)
+        hit = self.steps.get(key)
+        if hit is None:
+            item, _who, label = self.enabled(path, rstate)[k]
+            if label is None:   # an agent step, on the robot's side
+                succ = self.system._agent(rstate, item)
+                mirrored, why = self._mirror_agent(state, succ.step)
+                hit = (succ.state, None, mirrored, why)
+            else:
+                mirrored, why = self._mirror_robot(state, item.step, item.state.node.time)
+                hit = (item.state, item, mirrored, why)
+            _Setup._remember(self.steps, key, hit)
+        return hit
+
+    def _mirror_agent(self, state: Any, step: Any) -> tuple[list, Optional[str]]:
+        from ..robot.conform import best_match
+        sys = self.setup.system
+        cands = [c for c in sys.program.steps(state) if c.rule == step.rule]
+        if not cands:
+            enabled = sorted({c.rule for c in sys.program.steps(state)})
+            return [], (f"the robot run takes {step.rule}, which the model cannot take here (the model's enabled "
+                        f"steps: {', '.join(enabled) or 'none'})")
+        choice, _nxt, _exact = best_match(cands, state, sys.program, _printed(step))
+        succ = sys._successor(state, choice)
+        return [(succ.state, succ.step, succ.label)], None
+
+    def _mirror_robot(self, state: Any, step: Any, t: float) -> tuple[list, Optional[str]]:
+        """The model's outcome steps for the calls a launch or an advance answered."""
+        from ..clf.printer import show
+        from ..roar import vocabulary as V
+        from ..robot.conform import best_match
+        from ..roar.run import list_items
+        from ..robot.sim import classify
+        sys = self.setup.system
+        answered = [c for c in step.calls if c[2] is not None]
+        parts = [p for p in step.parts if p.rule == "functional_layer"]
+        out: list = []
+        for part, (fn, _args, res) in zip(parts, answered):
+            pend = part.consumed[0][1]
+            fc = V.pending(pend).fn.head.name
+            owner, name = self.model.functions[fc]
+            tys = self.model.fn_params.get(fc, [])
+            args = ", ".join(repr(self.system.values.python(x, tys[k] if k < len(tys) else None))
+                             for k, x in enumerate(list_items(V.pending(pend).args)))
+            shown = f"{owner}::{name}" if owner else name
+            rules = [c for c in sys.program.steps(state) if c.rule.startswith(f"outcome_{fc}_")]
+            if fc not in self.tree.now_fc:
+                prim = self.registry.lookup(name, owner)
+                names = classify(prim.outcomes, res, self.model.fn_types.get(fc)) if prim is not None else []
+                if not names:
+                    declared = ", ".join(o.name for o in prim.outcomes) if prim is not None else "none"
+                    return out, (f"the robot's {shown}({args}) returned {res.as_json()} at t = {t:.2f} s, which no "
+                                 f"declared outcome of {shown} covers (declared: {declared})")
+                wanted = {f"outcome_{fc}_{o}" for o in names}
+                cands = [c for c in rules if c.rule in wanted]
+                if not cands:
+                    return out, (f"the robot's {shown}({args}) ended {res.status} (outcome {names[0]}) at t = "
+                                 f"{t:.2f} s, but the model cannot answer {shown} with {' or '.join(names)} here")
+            else:
+                cands = rules
+            if not cands:
+                return out, f"the robot answered {shown}({args}), but the model has no answer to it here"
+            choice, _nxt, _exact = best_match(cands, state, sys.program, ([show(pend)], []), by_pending=True)
+            succ = sys._successor(state, choice)
+            out.append((succ.state, succ.step, succ.label))
+            state = succ.state
+        return out, None
+
+
+def _printed(step: Any) -> tuple[list, list]:
+    from ..clf.printer import show
+    from ..clf.terms import Root
+    return ([show(f) for _m, f in step.consumed if type(f) is Root],
+            [show(f) for _m, f in step.produced if type(f) is Root])
+
+
+def _robot_label(succ: Any) -> str:
+    """A robot step as hypothesis shows a draw: the launch (calls, fault points armed) or the advance."""
+    ev = succ.step.event
+    return succ.label if ev[0] == "launch" else "advance"
+
+
 class RoarMachine(RuleBasedStateMachine):
     """Subclass with ``spec`` (an :class:`AgentSpec` or a path) and ``request``; ``TestCase`` is
     the test. Class attributes choose the built-in checks."""
@@ -140,6 +296,15 @@ class RoarMachine(RuleBasedStateMachine):
     granularity: ClassVar[str] = "event"
     #: the longest run tried (hypothesis' stateful_step_count)
     stateful_step_count: ClassVar[int] = 100
+    #: lockstep with the reference robot: its scenario (a TOML path); None drives the model alone
+    scenario: ClassVar[Union[str, Path, None]] = None
+    #: the robot's seed (every noise term)
+    seed: ClassVar[int] = 0
+    #: fault points of the scenario the machine may arm at a launch: a list (at any call) or a dict
+    #: from fault point to the primitives at whose calls it may be armed (as ``explore_on_robot``)
+    faults: ClassVar[Union[Sequence[str], dict]] = ()
+    #: fault points on from the start
+    on: ClassVar[Sequence[str]] = ()
 
     _setups: ClassVar[dict] = {}
 
@@ -155,6 +320,9 @@ class RoarMachine(RuleBasedStateMachine):
             setup = RoarMachine._setups[type(self)] = _Setup(type(self))
         self._s = setup
         self.state = setup.start
+        #: with a scenario, the robot's side: the run-mode context and the robot (a RobotState)
+        self.robot_state: Any = setup.lock.start if setup.lock is not None else None
+        self.robot_events: list = []    # the robot's launches and advances, numbered as steps
         self.events: list = []          # the ROAR events so far, with their step numbers
         self.rules: list[str] = []      # the rule of each step taken
         self._narrator = self._new_narrator()
@@ -169,7 +337,19 @@ class RoarMachine(RuleBasedStateMachine):
         return self._s.model
 
     def _choices(self) -> list:
+        if self._s.lock is not None:
+            return self._s.lock.enabled(self._path, self.robot_state)
         return self._s.enabled(self._path, self.state)
+
+    @property
+    def robot_time(self) -> Optional[float]:
+        """With a scenario, the robot's simulated time (s)."""
+        return None if self.robot_state is None else self.robot_state.node.time
+
+    @property
+    def robot_pose(self) -> Optional[tuple]:
+        """With a scenario, the robot base's pose (x, y, heading in radians)."""
+        return None if self.robot_state is None else tuple(self.robot_state.node.pose)
 
     @property
     def quiescent(self) -> bool:
@@ -180,6 +360,8 @@ class RoarMachine(RuleBasedStateMachine):
     def final(self) -> bool:
         """Every request is final (success or failure) and no recipe is live."""
         from ..roar.explore import roar_final
+        if self.robot_state is not None and self.robot_state.node.at_horizon:
+            return True   # the scenario's horizon: the run is cut, not stuck
         return roar_final(self.state)
 
     def value(self, var: str) -> object:
@@ -199,7 +381,8 @@ class RoarMachine(RuleBasedStateMachine):
 
     def format_run(self) -> str:
         """The run so far, one ROAR event a line (``step. agent text``)."""
-        lines = [f"    {e.step:>3}. {e.agent:<12} {e.text}" for e in self.events]
+        evs = sorted(self.robot_events + self.events, key=lambda e: e.step)   # stable: a robot step, then its events
+        lines = [f"    {e.step:>3}. {e.agent:<12} {e.text}" for e in evs]
         return "\n".join(lines) if lines else "    (no ROAR event yet)"
 
     def __repr__(self) -> str:
@@ -220,12 +403,36 @@ class RoarMachine(RuleBasedStateMachine):
 
     def _take(self, k: int) -> list:
         """Take enabled step ``k``; the ROAR events it made."""
+        if self._s.lock is not None:
+            return self._take_lockstep(k)
         state, step, rule_name = self._s.successor(self._path, self.state, k)
         self._path += (k,)
         self.state = state
         self.rules.append(rule_name)
         made = self._narrator.events(len(self.rules), step)
         self.events.extend(made)
+        return made
+
+    def _take_lockstep(self, k: int) -> list:
+        """Step ``k`` on the robot and the same step on the model; a disagreement fails the run."""
+        from ..roar.run import RoarEvent
+        rstate, robot_step, mirrored, why = self._s.lock.successor(self._path, self.robot_state, k, self.state)
+        self._path += (k,)
+        self.robot_state = rstate
+        if robot_step is not None:
+            self.robot_events.append(RoarEvent(len(self.rules) + 1, "robot", "robot",
+                                               f"{_robot_label(robot_step)} (t = {rstate.node.time:.2f} s)"))
+            if not mirrored:
+                self.rules.append(robot_step.label)
+        made: list = []
+        for state, step, rule_name in mirrored:
+            self.state = state
+            self.rules.append(rule_name)
+            got = self._narrator.events(len(self.rules), step)
+            self.events.extend(got)
+            made.extend(got)
+        if why is not None:
+            self.fail(f"the robot and the model disagree: {why}")
         return made
 
     def _move(self, k: int) -> None:

@@ -193,3 +193,59 @@ def test_mission_properties_from_the_api_agree_with_the_checker_job(models, root
         assert res.status(p) == job.verdicts[p].status, p
     assert res.violated("mission-completion") and res.counterexample("mission-completion").kind == "lasso"
     assert res.states == job.graph.n_states
+
+
+# ------------------------------------------------------------------ what the command line is built on
+
+
+def test_job_files_run_through_the_api_as_check_runs_them(root, run_cli):
+    """`roar-verify check` is load_jobs, Job.run and Exploration.lines/as_json: the same verdicts,
+    block and JSON (timings aside); a job's budget can be changed before it runs."""
+    import json
+    import re
+
+    from roar_formal import load_jobs
+    path = root / "checker" / "mutual_make.toml"
+    [job] = load_jobs([path])
+    assert job.path == path and job.expect["deadlock"] == "violated" and "deadlock" in job.properties
+    res = job.run()
+    assert res.ok and res.violated("deadlock") and not res.unexpected and res.expected("deadlock") == "violated"
+    code, out, _err = run_cli("check", path, "--no-traces")
+    assert code == 0
+
+    def timeless(text):
+        return re.sub(r"\d+\.\d+ s", "T s", text)
+
+    block = timeless(res.lines().text())
+    assert block.startswith(f"ok {job.name}  (") and block in timeless(out)
+    code, out, _err = run_cli("check", path, "--no-traces", "--json")
+    [printed] = json.loads(out)
+    mine = res.as_json()
+    for doc in (printed, mine):
+        doc.pop("seconds"), doc.pop("memory_mb")
+    fresh = re.compile(r"#\d+")   # fresh names are numbered per process, not per exploration
+    assert fresh.sub("#", json.dumps(mine)) == fresh.sub("#", json.dumps(printed))
+    with pytest.raises(RoarError, match="no such job file or folder"):
+        load_jobs([root / "checker" / "nope.toml"])
+    [small] = load_jobs([path])
+    small.budget.max_states = 5
+    assert small.run().status("deadlock") in ("incomplete", "violated") and small.budget.max_states == 5
+
+
+def test_a_run_report_is_what_run_json_prints_and_saves_what_run_writes(pick, run_cli, tmp_path):
+    import json
+    import re
+
+    from roar_formal.trace.format import read_trace
+    run = pick.run(REQUEST, seed=2, faults=["close_jaws:1"])
+    code, out, _err = run_cli("run", pick.path, "-r", REQUEST, "--seed", "2", "--fault", "close_jaws:1", "--json",
+                              "--trace", tmp_path / "cli.jsonl")
+    assert code == 1 and json.loads(out) == run.as_json()
+    header, steps = read_trace(run.save_trace(tmp_path / "api.jsonl"))
+    cli_header, cli_steps = read_trace(tmp_path / "cli.jsonl")
+    assert header == cli_header, {k: (header.get(k), cli_header.get(k)) for k in set(header) | set(cli_header) if header.get(k) != cli_header.get(k)}
+    fresh = re.compile(r"#\d+")   # fresh names are numbered per process, not per run
+    assert json.loads(fresh.sub("#", json.dumps(steps))) == json.loads(fresh.sub("#", json.dumps(cli_steps)))
+    assert header["faults"] == ["close_jaws:1"] and header["fingerprint"]
+    dot = run.save_task_tree(tmp_path / "tree.dot").read_text(encoding="utf-8")
+    assert dot.startswith("digraph") and "close_jaws" in dot

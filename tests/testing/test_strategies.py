@@ -1,6 +1,5 @@
 """The hypothesis strategies: what they generate is valid, varied, and shrinks to small examples."""
 
-import time
 from collections import Counter
 
 import pytest
@@ -12,8 +11,8 @@ from roar_formal.clf.program import Program
 from roar_formal.clf.state import canonical_key
 from roar_formal.roar.checks import check_request, spec_errors
 from roar_formal.roar.run import parse_fault
-from roar_formal.testing import (STATEMENT_KINDS, clf_programs, clf_terms, fault_schedules, paths, requests,
-                                 spec_requests, specs, statement_kinds)
+from roar_formal.testing import (STATEMENT_KINDS, clf_programs, clf_terms, fault_schedules, paths, requests, specs,
+                                 statement_kinds)
 
 QUICK = settings(max_examples=25, deadline=None, database=None, derandomize=True,
                  suppress_health_check=[HealthCheck.too_slow])
@@ -56,7 +55,6 @@ def test_generated_specs_use_every_statement_kind_and_pass_the_static_checks():
     with_kind: Counter = Counter()
     agents: Counter = Counter()
     seen = []
-    t0 = time.perf_counter()
 
     @settings(max_examples=1000, derandomize=True, deadline=None, database=None,
               suppress_health_check=list(HealthCheck))
@@ -72,7 +70,6 @@ def test_generated_specs_use_every_statement_kind_and_pass_the_static_checks():
     assert set(with_kind) == set(STATEMENT_KINDS)
     assert all(with_kind[k] >= 20 for k in STATEMENT_KINDS), with_kind   # abort, the rarest, needs a handle
     assert agents[1] > 100 and agents[2] > 100
-    assert time.perf_counter() - t0 < 60   # the budget of this test is ~20 s; this only catches a collapse
 
 
 def _bare(spec) -> bool:
@@ -103,15 +100,7 @@ def test_requests_shrink_to_the_first_post_condition(examples):
     assert "where" not in find(requests(pick), lambda r: "gripper" in r, settings=FIND)
 
 
-@settings(max_examples=3, deadline=None, database=None, derandomize=True,
-          suppress_health_check=list(HealthCheck))
-@given(spec_requests(max_statements=3))
-def test_a_generated_spec_compiles_runs_and_its_run_ends(spec_and_request):
-    """Compiling costs ~0.5 s a spec: a few examples."""
-    spec, request = spec_and_request
-    run = spec.run(request, max_steps=3_000)
-    assert run.outcome in ("success", "failure", "running", "pending", "paused", "temporary failure")
-    assert run.events and run.events[0].text.startswith("R0 sent -> pending")
+# A generated spec compiles, runs, and its runs are paths of the explored model: test_dogfood.py.
 
 
 # ------------------------------------------------------------------ fault schedules
