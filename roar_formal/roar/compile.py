@@ -190,6 +190,7 @@ class _Compiler:
         self.task_run_csts: dict[str, str] = {}   # task const -> cst const
         self.predicates: dict[str, str] = {}      # pexp text -> agent (for cands)
         self.ensured: set[str] = set()            # constraints sent by an ensure somewhere
+        self.failure_budgets: dict[str, int] = {}  # function const -> failures left (max_failures)
         self.predicate_exprs: dict[str, tuple[a.Agent, a.Expr]] = {}   # pexp text -> (agent, qualified predicate)
         # cst -> the equalities its where clause establishes with literal values (hypotheses of the
         # logic layer, 4.3); None once two sends of it disagree (then it has none)
@@ -797,7 +798,7 @@ class _Compiler:
             for fc, (owner, name, rty) in sorted(self.pending_fns.items()):
                 o.extend(self.outcome_rules(fc, owner, name, rty))
         # initial context
-        init = []
+        init = [f"fails_left {fc} {nat(k)}" for fc, k in sorted(self.failure_budgets.items())]
         for ag in spec.agents:
             init.append(f"mask a_{ag.name} vnil")
             for v in ag.vars:
@@ -910,6 +911,9 @@ class _Compiler:
         outcomes = prim.outcomes if prim is not None else (
             DEFAULT_OUTCOMES if rty == "bool" else (Outcome("success", True),))
         rules = []
+        bound = prim.max_failures if prim is not None else None
+        if bound is not None:
+            self.failure_budgets[fc] = bound
         for o in outcomes:
             oname = re.sub(r"\W", "_", o.name)
             writes_p, writes_o = "", ""
@@ -926,7 +930,10 @@ class _Compiler:
                 res = f"return {self.default(rty)} D"
             else:
                 res = "callfail D"
-            rules.append(f"outcome_{fc}_{oname} : pending {fc} _ D{writes_p} -o {{{res}{writes_o}}}.")
+            budget_p = budget_o = ""
+            if bound is not None and not o.success:   # one failure fewer left (an assumption)
+                budget_p, budget_o = f" -o fails_left {fc} (s N)", f" * fails_left {fc} N"
+            rules.append(f"outcome_{fc}_{oname} : pending {fc} _ D{writes_p}{budget_p} -o {{{res}{writes_o}{budget_o}}}.")
         return rules
 
     def domain_rules(self) -> list[str]:

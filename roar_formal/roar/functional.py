@@ -70,6 +70,9 @@ class Primitive:
     name: str
     fn: Optional[Callable] = field(default=None, compare=False)
     outcomes: tuple[Outcome, ...] = DEFAULT_OUTCOMES
+    #: an assumption about the functional layer for exploration: the failing outcomes happen at
+    #: most this many times in a run (None: any number of times)
+    max_failures: Optional[int] = None
 
     def __call__(self, *args):
         if self.fn is None:
@@ -127,8 +130,13 @@ class Registry:
 
     # -- registration --------------------------------------------------------
     def register(self, name: str, fn: Optional[Callable] = None,
-                 outcomes: Optional[Iterable[Outcome]] = None, *, replace: bool = False):
+                 outcomes: Optional[Iterable[Outcome]] = None, *, replace: bool = False,
+                 max_failures: Optional[int] = None):
         """Bind ``name`` to ``fn`` with its abstract ``outcomes`` (default: success or failure).
+
+        ``max_failures`` bounds how many times, in one explored run, the primitive's failing
+        outcomes may happen (an assumption about the functional layer: "the gripper fails at
+        most twice"); past it only its successful outcomes remain.
 
         Without ``fn`` the name is bound for exploration only, and the call
         returns a decorator that supplies the callable::
@@ -154,12 +162,17 @@ class Registry:
                 if not isinstance(var, str) or not _NAME.fullmatch(var):
                     raise RoarError(f"outcome '{o.name}' of '{name}' writes {var!r}: "
                                     f"a variable is named 'var' or 'agent::var'")
+        if max_failures is not None and (not isinstance(max_failures, int) or isinstance(max_failures, bool)
+                                         or max_failures < 0):
+            raise RoarError(f"primitive '{name}': max_failures must be a whole number >= 0, not {max_failures!r}")
+        if max_failures is not None and all(not o.success for o in outs):
+            raise RoarError(f"primitive '{name}': max_failures needs a successful outcome to fall back on")
         if fn is not None and not callable(fn):
             raise RoarError(f"cannot register '{name}': {fn!r} is not callable")
-        self._prims[name] = Primitive(name, fn, outs)
+        self._prims[name] = Primitive(name, fn, outs, max_failures)
 
         def decorate(f: Callable) -> Callable:
-            self._prims[name] = Primitive(name, f, outs)
+            self._prims[name] = Primitive(name, f, outs, max_failures)
             return f
 
         return decorate if fn is None else fn

@@ -1,0 +1,68 @@
+"""A bound on a primitive's failures (``Registry.register(..., max_failures=k)``): an assumption
+about the functional layer ("the gripper slips at most twice") under which a recipe retried on
+failure is no longer a livelock."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from roar_formal.clf.terms import Const, Root
+from roar_formal.errors import RoarError
+from roar_formal.roar.functional import Outcome, Registry
+from roar_formal.verify.check import run_job
+from roar_formal.verify.jobs import job_for_model
+from repo import ROOT
+
+MODULE = """from roar_formal.roar.functional import Outcome, Registry
+
+def registry():
+    reg = Registry()
+    reg.register("grip", lambda: True, outcomes=[Outcome("closed", True), Outcome("slipped", False)]{extra})
+    return reg
+"""
+
+
+def _explore(tmp_path, extra: str):
+    spec = tmp_path / "grip.roar"
+    shutil.copy(ROOT / "models" / "faulty" / "retry_forever.roar", spec)
+    (tmp_path / "grip.py").write_text(MODULE.format(extra=extra))
+    return run_job(job_for_model(spec, "hand::holding == true", ["deadlock", "livelock"]))
+
+
+def _budgets(res) -> set:
+    out = set()
+    for sid in range(res.graph.n_states):
+        for _m, f, _n in res.roar[2].states[sid].facts():
+            if type(f) is Root and isinstance(f.head, Const) and f.head.name == "fails_left":
+                n, t = 0, f.args[1]
+                while t.head.name == "s":
+                    n, t = n + 1, t.args[0]
+                out.add(n)
+    return out
+
+
+def test_unbounded_failures_are_a_livelock(tmp_path):
+    res = _explore(tmp_path, "")
+    assert res.verdicts["livelock"].status == "violated"
+    assert _budgets(res) == set()
+
+
+@pytest.mark.parametrize("k", [0, 1, 2])
+def test_at_most_k_failures_end_every_run(tmp_path, k):
+    res = _explore(tmp_path, f", max_failures={k}")
+    assert res.graph.complete
+    assert res.verdicts["livelock"].status == "holds", res.verdicts["livelock"].message
+    assert res.verdicts["deadlock"].status == "holds"
+    # every budget from k down to 0 is reached (k failures happen on some run), none other
+    assert _budgets(res) == set(range(k + 1))
+
+
+def test_a_bound_must_be_a_count_with_a_success_to_fall_back_on():
+    reg = Registry()
+    for bad in (-1, 1.5, True):
+        with pytest.raises(RoarError, match="max_failures must be a whole number"):
+            reg.register("f", lambda: True, max_failures=bad)
+    with pytest.raises(RoarError, match="needs a successful outcome"):
+        reg.register("g", lambda: True, outcomes=[Outcome("broken", False)], max_failures=1)
