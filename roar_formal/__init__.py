@@ -36,6 +36,8 @@ _PUBLIC = {
     "Job": "roar_formal.testing.api",
     "load_job": "roar_formal.testing.api",
     "load_jobs": "roar_formal.testing.api",
+    "replay": "roar_formal.testing.api",
+    "Replay": "roar_formal.testing.api",
     "Budget": "roar_formal.explore.search",
     "RoarError": "roar_formal.errors",
 }
@@ -45,8 +47,8 @@ __all__ = ["__version__", *_PUBLIC]
 if TYPE_CHECKING:  # pragma: no cover - for type checkers: the lazy names are these
     from .errors import RoarError
     from .explore.search import Budget
-    from .testing.api import (AgentSpec, ClfModel, ClfRun, Counterexample, Exploration, Job, RunReport, load,
-                              load_clf, load_job, load_jobs, load_spec)
+    from .testing.api import (AgentSpec, ClfModel, ClfRun, Counterexample, Exploration, Job, Replay, RunReport,
+                              load, load_clf, load_job, load_jobs, load_spec, replay)
 
 
 def __getattr__(name: str) -> Any:

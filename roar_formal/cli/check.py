@@ -177,10 +177,8 @@ def register(app: typer.Typer) -> None:
             if code:
                 raise typer.Exit(code)
             return
-        from ..clf.query import with_big_stack
-        from ..verify.pictures import check_output_file, write_chart
-        from ..verify.replay import replay_trace
-        from ..verify.report import replay_report, replay_state_lines, replay_step_lines
+        from ..testing.api import replay
+        from ..verify.pictures import check_output_file
 
         for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
             if path is not None:
@@ -193,35 +191,23 @@ def register(app: typer.Typer) -> None:
                 raise RoarError(f"--dot {dot}: the trace holds no task-tree message (no request, no primitive "
                                 "call): a task tree is drawn from a trace of a ROAR spec")
         console = make_console()
-        rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
-        for note in rep.result.notes:
-            console.print(f"note: {note}", style="yellow")
-        n = len(rep.steps)
+        rep = replay(trace, model, functional=functional, force=force)
         if interactive:
+            for note in rep.notes:
+                console.print(f"note: {note}", style="yellow")
             _interactive_replay(console, rep, verbose)
+            show(console, rep.replayed_lines())
         else:
-            for i in range(1, n + 1):
-                show(console, replay_step_lines(rep, i, verbose))
-                if states:
-                    show(console, replay_state_lines(rep, i))
-            if rep.compiled is not None and not states:
-                show(console, replay_state_lines(rep, n))
-        tail = " and the cycle closes" if rep.result.cycle_closes else ""
-        console.print(f"replayed {n} step{'s' if n != 1 else ''}{tail}: every step is a step of the model",
-                      style="green")
-        what = rep.header.get("property") or rep.header.get("kind") or "trace"
-        for path in write_chart(replay_report(rep), f"{Path(trace).name}: replay of the {what} "
-                                f"({len(rep.steps)} steps)", f"the trace {trace}", png, svg):
+            show(console, rep.body_lines(verbose, states))
+        for path in rep.save_chart(png, svg):
             console.print(f"chart written to {path}")
         if dot is not None:
             from ..trace.format import write_atomic
-            write_atomic(dot, task_tree_dot(tree_events, f"{Path(trace).name}: {what}"))
+            write_atomic(dot, task_tree_dot(tree_events, f"{Path(trace).name}: {rep.claim}"))
             console.print(f"task tree written to {dot}")
+        show(console, rep.confirmation_lines())
         if rep.confirmed is False:
-            console.print(f"NOT CONFIRMED: {rep.confirmation}", style="red")
             raise typer.Exit(1)
-        console.print(("confirmed: " if rep.confirmed else "") + rep.confirmation,
-                      style="green" if rep.confirmed else "")
 
 
 _REPLAY_HELP = ("commands: Enter or n (next step), b (back), j N (jump to step N), s (state), "
@@ -231,9 +217,8 @@ _REPLAY_HELP = ("commands: Enter or n (next step), b (back), j N (jump to step N
 def _interactive_replay(console: Console, rep, verbose: bool) -> None:
     """Step through a replayed trace: the state is always the one after the shown step."""
     import sys
-    from ..verify.report import replay_state_lines, replay_step_lines
 
-    n = len(rep.steps)
+    n = rep.steps
     i = 0
     console.print(f"{n} steps; {_REPLAY_HELP}", style="dim")
     while True:
@@ -252,7 +237,7 @@ def _interactive_replay(console: Console, rep, verbose: bool) -> None:
                 console.print("at the end of the trace", style="yellow")
                 continue
             i += 1
-            show(console, replay_step_lines(rep, i, verbose, always=True))
+            show(console, rep.step_lines(i, verbose, always=True))
         elif cmd == "b":
             if i == 0:
                 console.print("at the start of the trace", style="yellow")
@@ -265,17 +250,17 @@ def _interactive_replay(console: Console, rep, verbose: bool) -> None:
                 continue
             i = int(arg)
             if i:
-                show(console, replay_step_lines(rep, i, verbose, always=True))
+                show(console, rep.step_lines(i, verbose, always=True))
         elif cmd == "e":
             i = n
-            show(console, replay_step_lines(rep, i, verbose, always=True))
+            show(console, rep.step_lines(i, verbose, always=True))
         elif cmd == "s":
-            show(console, replay_state_lines(rep, i))
+            show(console, rep.state_lines(i))
         elif cmd == "a":
             if not arg.strip():
                 console.print("a AGENT: name an agent", style="yellow")
                 continue
-            show(console, replay_state_lines(rep, i, arg.strip()))
+            show(console, rep.state_lines(i, arg.strip()))
         elif cmd == "q":
             return
         elif cmd in ("h", "?", "help"):

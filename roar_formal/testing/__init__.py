@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 _PUBLIC = {
     **{n: "api" for n in ("load", "load_spec", "load_clf", "load_job", "load_jobs", "AgentSpec", "ClfModel", "ClfRun",
-                          "RunReport", "Exploration", "Counterexample", "Job", "Budget", "RoarError")},
+                          "RunReport", "Exploration", "Counterexample", "Job", "Budget", "RoarError", "Replay",
+                          "replay")},
     **{n: "assertions" for n in ("RoarAssertionError", "TestSettings", "DEFAULT_BUDGET", "current_settings",
                                  "using_settings", "assert_no_deadlock", "assert_no_livelock",
                                  "assert_sequential_achievement", "assert_invariant", "assert_conforms",
@@ -31,8 +32,8 @@ _PUBLIC = {
 __all__ = sorted(_PUBLIC)
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .api import (AgentSpec, Budget, ClfModel, ClfRun, Counterexample, Exploration, Job, RoarError, RunReport,
-                      load, load_clf, load_job, load_jobs, load_spec)
+    from .api import (AgentSpec, Budget, ClfModel, ClfRun, Counterexample, Exploration, Job, Replay, RoarError,
+                      RunReport, load, load_clf, load_job, load_jobs, load_spec, replay)
     from .assertions import (DEFAULT_BUDGET, RoarAssertionError, TestSettings, assert_conforms, assert_invariant,
                              assert_no_deadlock, assert_no_livelock, assert_sequential_achievement, assert_succeeds,
                              current_settings, using_settings)

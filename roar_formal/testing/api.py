@@ -50,7 +50,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 __all__ = [
     "AgentSpec", "ClfModel", "ClfRun", "Counterexample", "Exploration", "RunReport", "Budget", "RoarError",
     "Job", "load", "load_spec", "load_clf", "load_job", "load_jobs", "is_model_path", "parse_faults", "as_budget",
-    "write_html_report", "ROAR_PROPERTIES", "CLF_PROPERTIES",
+    "write_html_report", "ROAR_PROPERTIES", "CLF_PROPERTIES", "Replay", "replay",
 ]
 
 PathLike = Union[str, Path]
@@ -989,6 +989,122 @@ class ClfRun:
 
     def __str__(self) -> str:
         return self.format()
+
+
+# ---------------------------------------------------------------------------- replay
+
+
+def replay(trace: PathLike, model: Optional[PathLike] = None, *, functional: Optional[PathLike] = None,
+           force: bool = False) -> "Replay":
+    """Replay a trace (a counterexample from :meth:`Exploration.save_counterexamples` or
+    ``check``, or a run's trace) step by step on ``model`` (a spec or a ``.clf`` program; the
+    trace's own when None), as ``roar-verify replay`` does. A step the model cannot take, or a
+    trace of another version of the spec (unless ``force``), is a :class:`RoarError`."""
+    from ..clf.query import with_big_stack
+    from ..verify.replay import replay_trace
+    rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
+    return Replay(Path(trace), rep)
+
+
+@dataclass
+class Replay:
+    """A trace replayed on a model and read back in the model's terms: ROAR events and variable
+    changes per step for a spec, the per-agent state after any step, and whether the end shows
+    again what the trace claims (``confirmed``: True, False, or None when replay cannot re-decide
+    the claim)."""
+
+    trace: Path
+    _rep: Any
+
+    @property
+    def steps(self) -> int:
+        return len(self._rep.steps)
+
+    @property
+    def confirmed(self) -> Optional[bool]:
+        return self._rep.confirmed
+
+    @property
+    def confirmation(self) -> str:
+        return self._rep.confirmation
+
+    @property
+    def notes(self) -> list[str]:
+        return list(self._rep.result.notes)
+
+    @property
+    def cycle_closes(self) -> bool:
+        return bool(self._rep.result.cycle_closes)
+
+    @property
+    def claim(self) -> str:
+        """What the trace says it shows: its property, or its kind."""
+        return self._rep.header.get("property") or self._rep.header.get("kind") or "trace"
+
+    @property
+    def is_spec(self) -> bool:
+        return self._rep.compiled is not None
+
+    def state(self, i: int) -> dict:
+        """The state after step ``i`` (0: the start): per agent for a spec, ``{"facts": [...]}`` otherwise."""
+        return self._rep.state_table(i)
+
+    def step_lines(self, i: int, verbose: bool = False, always: bool = False) -> Lines:
+        """Step ``i`` (from 1): its ROAR events and variable changes (its CLF rule with
+        ``verbose``; ``always``: a line even for a step with nothing to show)."""
+        from ..verify.report import replay_step_lines
+        return replay_step_lines(self._rep, i, verbose, always=always)
+
+    def state_lines(self, i: int, agent: Optional[str] = None) -> Lines:
+        """The state after step ``i`` (0: the start), as a table per agent (one agent's row if named)."""
+        from ..verify.report import replay_state_lines
+        return replay_state_lines(self._rep, i, agent) if agent else replay_state_lines(self._rep, i)
+
+    def body_lines(self, verbose: bool = False, states: bool = False) -> Lines:
+        """Notes, every step (with the state after each when ``states``), the final state, and
+        the line that says every step was a step of the model."""
+        out = Lines()
+        for note in self.notes:
+            out.add(f"note: {note}", style="yellow")
+        for i in range(1, self.steps + 1):
+            out.extend(self.step_lines(i, verbose))
+            if states:
+                out.extend(self.state_lines(i))
+        if self.is_spec and not states:
+            out.extend(self.state_lines(self.steps))
+        return out.extend(self.replayed_lines())
+
+    def replayed_lines(self) -> Lines:
+        n = self.steps
+        tail = " and the cycle closes" if self.cycle_closes else ""
+        return Lines().add(f"replayed {n} step{'s' if n != 1 else ''}{tail}: every step is a step of the model",
+                           style="green")
+
+    def confirmation_lines(self) -> Lines:
+        """Whether the end of the replay shows again what the trace claims."""
+        if self.confirmed is False:
+            return Lines().add(f"NOT CONFIRMED: {self.confirmation}", style="red")
+        return Lines().add(("confirmed: " if self.confirmed else "") + self.confirmation,
+                           style="green" if self.confirmed else "")
+
+    def lines(self, verbose: bool = False, states: bool = False) -> Lines:
+        """As ``roar-verify replay`` prints it (without pictures)."""
+        return self.body_lines(verbose, states).extend(self.confirmation_lines())
+
+    def format(self, verbose: bool = False) -> str:
+        """The replay as ``roar-verify replay`` prints it, as plain text."""
+        return self.lines(verbose).text()
+
+    def __str__(self) -> str:
+        return self.format()
+
+    def save_chart(self, png: Optional[PathLike] = None, svg: Optional[PathLike] = None) -> list[Path]:
+        """Draw the replay's message sequence chart into the PNG and SVG files asked for."""
+        from ..verify.pictures import write_chart
+        from ..verify.report import replay_report
+        return write_chart(replay_report(self._rep), f"{self.trace.name}: replay of the {self.claim} "
+                           f"({self.steps} steps)", f"the trace {self.trace}",
+                           None if png is None else Path(png), None if svg is None else Path(svg))
 
 
 class ClfModel:

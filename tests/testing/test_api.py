@@ -116,6 +116,13 @@ def test_a_counterexample_prints_exactly_as_roar_verify_check(models, root, run_
     code, out, err = run_cli("replay", path, "--model", models / "faulty" / "mutual_make.roar")
     assert code == 0, err
     assert "replayed 27 steps" in out
+    # and through the API, which the command is built on: the same text, the claim confirmed
+    rep = roar_formal.replay(path, models / "faulty" / "mutual_make.roar")
+    assert rep.steps == 27 and rep.confirmed is True and rep.claim == "deadlock"
+    assert rep.format() == out.rstrip("\n")
+    start, end = rep.state(0), rep.state(27)
+    assert set(start) == set(end) == {"arm", "door"}
+    assert start != end
 
 
 def test_exploration_statistics_and_its_printed_form(models):
