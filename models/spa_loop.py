@@ -11,10 +11,9 @@ itself if there is none yet); ``odometry`` reads x to the nearest metre.
 
 The outcomes with fixed values are written for the request
 ``exec::arrived == true where exec::goal == 7``. A stamp is classified
-relative to the stamp read before it: ``new_scan`` when it moved on,
-``no_scan`` when it did not; with the representative values 1 and 0 every
-comparison the spec makes (``>``, ``!=`` against the last stamp it kept)
-comes out the same as on the robot.
+``new_scan()`` tells whether a scan arrived since the previous call (the
+functional layer keeps the stamp it last saw): its outcomes ``scan`` and
+``none`` are exact, true and false.
 """
 
 from roar_formal.robot.activity import Read, Sleep, ok
@@ -24,8 +23,8 @@ from roar_formal.roar.functional import Outcome, Registry
 GOAL = 7
 
 OUTCOMES = {
-    "scan_stamp": [Outcome("new_scan", True, result=1, covers=lambda r: r.ok and r.value > r.detail["previous"]),
-                   Outcome("no_scan", True, result=0, covers=lambda r: r.ok and r.value <= r.detail["previous"])],
+    "new_scan": [Outcome("scan", True, covers=lambda r: r.ok),
+                 Outcome("none", False, covers=lambda r: not r.failed and r.value is False)],
     "compute_plan": [Outcome("planned", True), Outcome("no_path", False)],
     "track": [Outcome("tracking", True), Outcome("lost", False)],
     "odometry": [Outcome("at_goal", True, result=GOAL, covers=lambda r: r.ok and r.value == GOAL),
@@ -37,10 +36,10 @@ def registry() -> Registry:
     reg = Registry()
     state = {"scans": 0, "target": None, "pos": 0}
 
-    def scan_stamp():
+    def new_scan():
         # one scan arrives, then the lidar keeps reporting it
-        state["scans"] = 1
-        return state["scans"]
+        seen, state["scans"] = state["scans"], 1
+        return state["scans"] > seen
 
     def compute_plan(goal):
         return True
@@ -56,7 +55,7 @@ def registry() -> Registry:
             state["pos"] += 1 if t > state["pos"] else -1
         return state["pos"]
 
-    reg.register("scan_stamp", scan_stamp, outcomes=OUTCOMES["scan_stamp"])
+    reg.register("new_scan", new_scan, outcomes=OUTCOMES["new_scan"])
     reg.register("compute_plan", compute_plan, outcomes=OUTCOMES["compute_plan"])
     reg.register("track", track, outcomes=OUTCOMES["track"])
     reg.register("odometry", odometry, outcomes=OUTCOMES["odometry"])
@@ -70,12 +69,12 @@ def _target(robot, goal):
 def robot_registry() -> Registry:
     reg = Registry()
 
-    def scan_stamp():
+    def new_scan():
         def read(robot):
             prev = robot.memo.get("stamp", 0)
             robot.memo["stamp"] = robot.scans
-            return ok(robot.scans, "stamp", previous=prev)
-        return Read(read, "scan_stamp")
+            return ok(robot.scans > prev, "new_scan", stamp=robot.scans, previous=prev)
+        return Read(read, "new_scan")
 
     def compute_plan(goal):
         return _PlanTo(goal)
@@ -86,7 +85,7 @@ def robot_registry() -> Registry:
             return robot.follow(path or [])
         return Read(read, "track")
 
-    reg.register("scan_stamp", scan_stamp, outcomes=OUTCOMES["scan_stamp"])
+    reg.register("new_scan", new_scan, outcomes=OUTCOMES["new_scan"])
     reg.register("compute_plan", compute_plan, outcomes=OUTCOMES["compute_plan"])
     reg.register("track", track, outcomes=OUTCOMES["track"])
     reg.register("odometry", lambda: Sleep(0.05, "odometry_metres", name="odometry"), outcomes=OUTCOMES["odometry"])

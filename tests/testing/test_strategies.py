@@ -122,8 +122,8 @@ def test_fault_schedules_name_the_functions_and_their_declared_outcomes(models):
                 assert f.outcome in [o.name for o in reg.lookup(f.name).outcomes]
 
     check()
-    assert find(fault_schedules(spa), lambda f: len(f) > 0, settings=FIND) == ["scan_stamp:1"]
-    assert find(fault_schedules(spa), lambda f: any("=" in x for x in f), settings=FIND) == ["scan_stamp:1=new_scan"]
+    assert find(fault_schedules(spa), lambda f: len(f) > 0, settings=FIND) == ["new_scan:1"]
+    assert find(fault_schedules(spa), lambda f: any("=" in x for x in f), settings=FIND) == ["new_scan:1=scan"]
     permanent = find(fault_schedules(spa, permanent=True), lambda f: any(":" not in x for x in f), settings=FIND)
     assert len(permanent) == 1 and permanent[0] in fns
     assert find(fault_schedules(spa, outcomes=False), lambda f: True, settings=FIND) == []
