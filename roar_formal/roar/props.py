@@ -747,16 +747,20 @@ def check_always(g, prop: str, holds: np.ndarray, why: Callable[[int], str]):
 
 
 def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_end: Callable[[int], str],
-                     why_cycle: Callable[[int, int], str], holds_text: str, cut: Optional[np.ndarray] = None):
+                     why_cycle: Callable[[int, int], str], holds_text: str, cut: Optional[np.ndarray] = None,
+                     strong: bool = False):
     """Every fair run from a seed state reaches a ``target`` state (``seeds``: P and not Q for
-    ``P leads-to Q``; the start state for ``eventually Q``). Weak fairness per group, as livelock.
+    ``P leads-to Q``; the start state for ``eventually Q``). Fairness per group, as livelock:
+    weak (a group enabled all along a cycle moves on it), or with ``strong`` strong (a group
+    enabled anywhere on a cycle moves on it; Emerson-Lei pruning).
 
     A violation is a seed, then a path of non-target states to a quiescent state (the run ends
     without the target) or to a fair cycle of non-target states (a lasso). The counterexample
     minimises the path's length (to the seed by the BFS parent pointers, then inside the region).
     Only expanded states are used, so a violation found in a partial graph is real. ``cut`` marks
     states without successors that are not the end of a run (a robot-backed search's horizon)."""
-    from ..explore.properties import Counterexample, Verdict, incomplete_note, strongly_connected, cycle_tour, fair_components
+    from ..explore.properties import (Counterexample, Verdict, cycle_tour, fair_components, incomplete_note,
+                                      strong_fair_components, strongly_connected)
     n = g.n_states
     a = g.arrays()
     src, dst, grp = a["src"], a["dst"], a["group"]
@@ -799,7 +803,17 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
         best = (int(dist[e0]), "end", e0, None)
     inner = region[src] & region[dst] & expanded[src] & expanded[dst]
     isrc, idst = src[inner], dst[inner]
-    if len(isrc):
+    if len(isrc) and strong:
+        found = strong_fair_components(g, inner, src, dst, grp, expanded & region)
+        if found is not None:
+            member, fair, ci, enabled, comp, cand_edges = found
+            fm = np.flatnonzero(member & np.isin(comp, fair))
+            entry = int(fm[np.argmin(dist[fm])])
+            if best is None or dist[entry] < best[0]:
+                c = comp[entry]
+                best = (int(dist[entry]), "cycle", entry,
+                        (cand_edges[ci == c], set(np.flatnonzero(enabled[c]).tolist())))
+    elif len(isrc):
         comp = strongly_connected(n, isrc, idst)
         internal = comp[isrc] == comp[idst]
         cand_edges = np.flatnonzero(inner)[internal]
@@ -830,7 +844,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
         return Verdict(prop, "violated", f"{reason} (reached in {len(prefix)} steps)", cx,
                        {"reason": reason, "seed": u})
     edges_c, req = extra
-    cycle = cycle_tour(g, s, edges_c, req, src, dst, grp)
+    cycle = cycle_tour(g, s, edges_c, req, src, dst, grp, strong)
     cx = Counterexample("lasso", prefix, cycle, final_state=s)
     reason = why_cycle(s, len(cycle))
     names = sorted({g.groups.names[int(grp[e])] for e in cycle})
@@ -857,6 +871,7 @@ class SpecChecks:
         self.always = [f.bind(model) for f in getattr(props, "spec_always", [])]
         never = [f.bind(model) for f in getattr(props, "spec_never", [])]
         self.temporal = {name: f.bind(model) for name, f in getattr(props, "temporal", {}).items()}
+        self.strong_temporal = set(getattr(props, "temporal_strong", ()))   # decided under strong fairness
         progress = [f.bind(model) for f in getattr(props, "spec_progress", [])]
         for f in self.always:
             if f.events:
@@ -969,10 +984,11 @@ class SpecChecks:
                 ok = self.values(f.pf, views)
                 return check_always(g, p, ok, lambda s: f"a reachable state breaks {f.text!r}: "
                                     f"{f.explain(views[s])}")
+            strong = p in self.strong_temporal
             if f.form == "eventually":
-                return self._eventually(p, g, views, f, None)
+                return self._eventually(p, g, views, f, None, strong)
             if f.form == "leads-to":
-                return self._eventually(p, g, views, f, f)
+                return self._eventually(p, g, views, f, f, strong)
             ok = self.values(f.pf, views)   # a bare state predicate: it holds in every reachable state
             return check_always(g, p, ok, lambda s: f"a reachable state breaks {f.text!r}: {f.explain(views[s])}")
         raise KeyError(p)
@@ -1014,7 +1030,7 @@ class SpecChecks:
             return incomplete_note("invariant", g)
         return Verdict("invariant", "holds", f"no violation in {g.n_states:,} states and {g.n_edges:,} steps")
 
-    def _eventually(self, p, g, views, f: Formula, leads: Optional[Formula]):
+    def _eventually(self, p, g, views, f: Formula, leads: Optional[Formula], strong: bool = False):
         qf = f.qf if leads is not None else f.pf
         target = self.values(qf, views)
         if leads is None:
@@ -1043,7 +1059,7 @@ class SpecChecks:
                 return f"request R0 ({self.request_text}) never succeeds: it stays {v.r0 or 'gone'} on a run " \
                        f"that repeats forever"
             return f"{what} on a run that repeats forever ({f.explain(v)})"
-        fair = "under weak fairness per agent"
+        fair = f"under {'strong' if strong else 'weak'} fairness per agent"
         if leads is None:
             holds = f"every fair run reaches {goal!r} ({fair}; {g.n_states:,} states)"
         else:
@@ -1051,4 +1067,4 @@ class SpecChecks:
         cut = None
         if self.cut is not None:
             cut = np.fromiter((bool(self.cut(i)) for i in range(len(views))), dtype=bool, count=len(views))
-        return check_eventually(g, p, target, seeds, why_end, why_cycle, holds, cut)
+        return check_eventually(g, p, target, seeds, why_end, why_cycle, holds, cut, strong)

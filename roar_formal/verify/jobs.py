@@ -49,6 +49,7 @@ class PropertySpec:
     spec_always: list = field(default_factory=list)     # invariant: predicates every reachable state satisfies
     spec_progress: list = field(default_factory=list)   # livelock: a step into a state where one holds is progress
     temporal: dict = field(default_factory=dict)        # [temporal] name -> Formula (always/eventually/leads-to)
+    temporal_strong: set = field(default_factory=set)   # [temporal] names decided under strong fairness
     defaulted: bool = False                             # nothing named a property: the spec defaults are checked
 
     @property
@@ -268,9 +269,20 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
             if name in PROPERTIES or not re.fullmatch(r"[a-z][a-z0-9-]*", name):
                 raise RoarError(f"[temporal] '{name}': a property is named with lower-case letters, digits and '-', "
                                 f"and not like a built-in property ({', '.join(PROPERTIES)})", where)
+            if isinstance(text, dict):   # name = { formula = "...", fairness = "strong" }
+                _expect_keys(text, {"formula", "fairness"}, f"[temporal] {name}", path)
+                fairness = text.get("fairness", "weak")
+                if fairness not in ("weak", "strong"):
+                    raise RoarError(f"[temporal] {name}: fairness must be 'weak' (an agent enabled all along a "
+                                    f"cycle moves on it) or 'strong' (an agent enabled infinitely often moves "
+                                    f"infinitely often), not {fairness!r}", _value_pos(path, "fairness"))
+                if fairness == "strong":
+                    spec.temporal_strong.add(name)
+                text = text.get("formula")
             if not isinstance(text, str) or not text.strip():
                 raise RoarError(f"[temporal] {name} is a formula such as \"always P\", \"eventually P\" or "
-                                f"\"P leads-to Q\" (docs/checking.md)", where)
+                                f"\"P leads-to Q\" (docs/checking.md), or a table {{ formula = \"...\", "
+                                f"fairness = \"strong\" }}", where)
             spec.temporal[name] = parse_formula(text, _string_pos(path, name, text))
             if name not in spec.check:
                 spec.check.append(name)

@@ -151,3 +151,71 @@ def test_a_job_chooses_the_strength_of_fairness(tmp_path, roar_cli):
     (tmp_path / "job_bad.toml").write_text('name = "bad"\nmodel = "m.clf"\nproperties = ["bad.toml"]\n')
     code, _out, err = roar_cli("check", tmp_path / "job_bad.toml")
     assert code == 2 and "bad.toml:3:12: strength must be 'weak'" in err
+
+
+# ------------------------------------------------------------------ eventually / leads-to
+
+
+def eventually_oracle(n: int, edges: list, target: set, strong: bool) -> bool:
+    """Is 'eventually target' violated from state 0: a run through non-target states that ends,
+    or that closes a (weakly / strongly) fair cycle of non-target states?"""
+    if 0 in target:
+        return False
+    region, todo = {0}, [0]
+    while todo:
+        u = todo.pop()
+        for s, t, _g, _p in edges:
+            if s == u and t not in target and t not in region:
+                region.add(t)
+                todo.append(t)
+    if any(not any(s == u for s, _t, _g, _p in edges) for u in region):
+        return True
+    # a fair cycle inside the region: edges leaving it (or touching a target) cannot be inside S
+    inner = [(s, t, g, not (s in region and t in region)) for s, t, g, _p in edges]
+    return oracle(n, inner, strong)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(graphs(), st.booleans(), st.sets(st.integers(0, 5), max_size=3))
+def test_eventually_verdicts_match_the_oracle(gr, strong, target_ids):
+    import numpy as np
+    from roar_formal.roar.props import check_eventually
+    n, edges = gr
+    g, kept = build(n, edges)
+    target = {t for t in target_ids if t < g.n_states}
+    tmask = np.zeros(g.n_states, dtype=bool)
+    tmask[list(target)] = True
+    seeds = np.zeros(g.n_states, dtype=bool)
+    seeds[0] = True
+    v = check_eventually(g, "p", tmask, seeds, lambda s: "ends", lambda s, k: "cycles", "holds", strong=strong)
+    assert v.violated == eventually_oracle(g.n_states, kept, target, strong), (kept, target, v.message)
+    if v.violated and v.counterexample.kind == "lasso":   # the cycle is fair and avoids the target
+        a = g.arrays()
+        cyc = v.counterexample.cycle
+        src, dst, grp = a["src"], a["dst"], a["group"]
+        states = {int(src[x]) for x in cyc}
+        assert not states & target
+        en = [{int(grp[e]) for e in range(len(src)) if src[e] == s} for s in states]
+        need = set().union(*en) if strong else set.intersection(*en)
+        assert need <= {int(grp[x]) for x in cyc}
+
+
+def test_a_temporal_property_chooses_strong_fairness(tmp_path, roar_cli):
+    """Per property, in the job's [temporal] table: a formula, or { formula, fairness }."""
+    from repo import ROOT
+
+    def job(props: str):
+        (tmp_path / "p.toml").write_text(props)
+        (tmp_path / "job.toml").write_text(
+            f"name = \"demo\"\nspec = \"{ROOT / 'models' / 'demo_loco'}\"\n"
+            "request = \"demo_loco::pos == demo_loco::goal where demo_loco::goal == 5\"\n"
+            "properties = [\"p.toml\"]\n")
+        return roar_cli("check", tmp_path / "job.toml", "--no-traces")
+    code, out, err = job("[temporal]\n"
+                         "arrives = \"eventually request R0 succeeded\"\n"
+                         "arrives-strong = { formula = \"eventually request R0 succeeded\", fairness = \"strong\" }\n")
+    assert code == 0, err
+    assert "arrives: holds" in out and "under weak fairness per agent" in out
+    assert "arrives-strong: holds" in out and "under strong fairness per agent" in out
+    code, out, err = job("[temporal]\nx = { formula = \"eventually request R0 succeeded\", fairness = \"sometimes\" }\n")
+    assert code == 2 and "p.toml:2:" in err and "fairness must be 'weak'" in err, err
