@@ -161,6 +161,8 @@ class Formula:
     qf: Optional[Callable] = None
     shown: list = field(default_factory=list)   # what a violation prints: (label, View -> text)
     events: bool = False                         # names an event: evaluated on a step
+    p_events: bool = False                       # p (q) names an event: it holds on a step, not in a state
+    q_events: bool = False
 
     def at(self, col: int) -> Optional[Pos]:
         """The position of column ``col`` of the string in its file."""
@@ -173,14 +175,17 @@ class Formula:
         b = _Binder(model, self)
         self.pf, ty = b.expr(self.p)
         b.want_bool(self.p, ty)
+        self.p_events, b.events = b.events, False
         if self.q is not None:
             self.qf, ty = b.expr(self.q)
             b.want_bool(self.q, ty)
+        self.q_events = b.events
         self.shown = b.shown
-        self.events = b.events
-        if self.events and self.form != "state":
+        self.events = self.p_events or self.q_events
+        if self.events and self.form == "always":
             raise RoarError(f"in property {self.text!r}: events (primitive ... starts, constraint sent to ...) "
-                            "are steps: write them in [invariant] never or [livelock] progress", self.at(1))
+                            "are steps, not states: write 'never' of an event in [invariant] never, or use "
+                            "them with eventually / leads-to", self.at(1))
         return self
 
     def explain(self, view: "View") -> str:
@@ -748,11 +753,12 @@ def check_always(g, prop: str, holds: np.ndarray, why: Callable[[int], str]):
 
 def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_end: Callable[[int], str],
                      why_cycle: Callable[[int, int], str], holds_text: str, cut: Optional[np.ndarray] = None,
-                     strong: bool = False):
+                     strong: bool = False, target_edges: Optional[np.ndarray] = None):
     """Every fair run from a seed state reaches a ``target`` state (``seeds``: P and not Q for
     ``P leads-to Q``; the start state for ``eventually Q``). Fairness per group, as livelock:
     weak (a group enabled all along a cycle moves on it), or with ``strong`` strong (a group
-    enabled anywhere on a cycle moves on it; Emerson-Lei pruning).
+    enabled anywhere on a cycle moves on it; Emerson-Lei pruning). ``target_edges``: the goal is
+    a step (an event) rather than a state: a run reaches it by taking one of those edges.
 
     A violation is a seed, then a path of non-target states to a quiescent state (the run ends
     without the target) or to a fair cycle of non-target states (a lasso). The counterexample
@@ -767,6 +773,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     expanded = np.asarray(g.expanded, dtype=bool)
     depth = np.asarray(g.depth, dtype=np.int64)
     target = target[:n]
+    hit = np.zeros(len(src), dtype=bool) if target_edges is None else np.asarray(target_edges[:len(src)], dtype=bool)
     seeds = np.flatnonzero(seeds[:n] & ~target)
     if len(seeds) == 0:
         if not g.complete:
@@ -789,7 +796,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
             continue
         for e in order[starts[u]:starts[u + 1]].tolist():
             v = int(dst[e])
-            if target[v] or d + 1 >= dist[v]:
+            if target[v] or hit[e] or d + 1 >= dist[v]:
                 continue
             dist[v] = d + 1
             via[v] = e
@@ -801,7 +808,7 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     if len(ends):
         e0 = int(ends[np.argmin(dist[ends])])
         best = (int(dist[e0]), "end", e0, None)
-    inner = region[src] & region[dst] & expanded[src] & expanded[dst]
+    inner = region[src] & region[dst] & expanded[src] & expanded[dst] & ~hit
     isrc, idst = src[inner], dst[inner]
     if len(isrc) and strong:
         found = strong_fair_components(g, inner, src, dst, grp, expanded & region)
@@ -871,6 +878,11 @@ class SpecChecks:
         self.always = [f.bind(model) for f in getattr(props, "spec_always", [])]
         never = [f.bind(model) for f in getattr(props, "spec_never", [])]
         self.temporal = {name: f.bind(model) for name, f in getattr(props, "temporal", {}).items()}
+        for f in self.temporal.values():
+            if f.form == "state" and f.events:
+                raise RoarError(f"in property {f.text!r}: an event alone is not a temporal property: write "
+                                "'eventually EVENT', 'P leads-to EVENT', or 'never EVENT' in [invariant] never",
+                                f.at(1))
         self.strong_temporal = set(getattr(props, "temporal_strong", ()))   # decided under strong fairness
         progress = [f.bind(model) for f in getattr(props, "spec_progress", [])]
         for f in self.always:
@@ -986,9 +998,9 @@ class SpecChecks:
                                     f"{f.explain(views[s])}")
             strong = p in self.strong_temporal
             if f.form == "eventually":
-                return self._eventually(p, g, views, f, None, strong)
+                return self._eventually(p, g, views, f, None, strong, step_of)
             if f.form == "leads-to":
-                return self._eventually(p, g, views, f, f, strong)
+                return self._eventually(p, g, views, f, f, strong, step_of)
             ok = self.values(f.pf, views)   # a bare state predicate: it holds in every reachable state
             return check_always(g, p, ok, lambda s: f"a reachable state breaks {f.text!r}: {f.explain(views[s])}")
         raise KeyError(p)
@@ -1030,15 +1042,34 @@ class SpecChecks:
             return incomplete_note("invariant", g)
         return Verdict("invariant", "holds", f"no violation in {g.n_states:,} states and {g.n_edges:,} steps")
 
-    def _eventually(self, p, g, views, f: Formula, leads: Optional[Formula], strong: bool = False):
+    def edge_values(self, fn, g, views, step_of) -> np.ndarray:
+        """On every edge: does ``fn`` hold on that step (the state it leaves, and its events)?"""
+        if step_of is None:
+            raise RoarError("events in properties need the explored steps")   # pragma: no cover
+        return np.fromiter((bool(fn(self.step_view(views, g, step_of, e))) for e in range(g.n_edges)),
+                           dtype=bool, count=g.n_edges)
+
+    def _eventually(self, p, g, views, f: Formula, leads: Optional[Formula], strong: bool = False, step_of=None):
         qf = f.qf if leads is not None else f.pf
-        target = self.values(qf, views)
+        goal_event = f.q_events if leads is not None else f.p_events
+        target_edges = None
+        if goal_event:   # the goal is a step: reached by taking an edge on which it holds
+            target = np.zeros(len(views), dtype=bool)
+            target_edges = self.edge_values(qf, g, views, step_of)
+        else:
+            target = self.values(qf, views)
         if leads is None:
             seeds = np.zeros(len(views), dtype=bool)
             seeds[0] = True
             what = "R0 never succeeds" if f is self.completion else f"never {f.p.text!r}"
         else:
-            seeds = self.values(f.pf, views)
+            if f.p_events:   # after the step on which P holds: the states those steps reach
+                seeds = np.zeros(len(views), dtype=bool)
+                hit = self.edge_values(f.pf, g, views, step_of)
+                dst = np.asarray(g.arrays()["dst"])
+                seeds[dst[hit][dst[hit] < len(views)]] = True
+            else:
+                seeds = self.values(f.pf, views)
             what = f"after {f.p.text!r}, never {f.q.text!r}"
         goal = f.q.text if leads is not None else f.p.text
 
@@ -1051,14 +1082,14 @@ class SpecChecks:
                         else "none recorded"
                     return f"a run ends with request R0 ({self.request_text}) failed; error context: {ctx}"
                 return f"a run ends with request R0 ({self.request_text}) {v.r0 or 'gone'}, not succeeded"
-            return f"a run ends without {goal!r} ({what}): {f.explain(v)}"
+            return f"a run ends without {goal!r} ({what})" + ("" if goal_event else f": {f.explain(v)}")
 
         def why_cycle(s, k):
             v = views[s]
             if f is self.completion:
                 return f"request R0 ({self.request_text}) never succeeds: it stays {v.r0 or 'gone'} on a run " \
                        f"that repeats forever"
-            return f"{what} on a run that repeats forever ({f.explain(v)})"
+            return f"{what} on a run that repeats forever" + ("" if goal_event else f" ({f.explain(v)})")
         fair = f"under {'strong' if strong else 'weak'} fairness per agent"
         if leads is None:
             holds = f"every fair run reaches {goal!r} ({fair}; {g.n_states:,} states)"
@@ -1067,4 +1098,4 @@ class SpecChecks:
         cut = None
         if self.cut is not None:
             cut = np.fromiter((bool(self.cut(i)) for i in range(len(views))), dtype=bool, count=len(views))
-        return check_eventually(g, p, target, seeds, why_end, why_cycle, holds, cut, strong)
+        return check_eventually(g, p, target, seeds, why_end, why_cycle, holds, cut, strong, target_edges)

@@ -14,6 +14,7 @@ and it is fair.
 
 from __future__ import annotations
 
+import re
 from collections import deque
 from pathlib import Path
 
@@ -595,10 +596,41 @@ def test_event_invariants_agree_with_the_oracle(tmp_path, text, fn):
         assert len(v.counterexample.prefix) == min(hits) and "its events:" in v.message
 
 
-def test_events_are_refused_outside_never_and_progress(tmp_path):
-    job = _job(tmp_path, CAMERA_BOUNDED, '[temporal]\nx = "eventually primitive camera::snap starts"\n')
-    with pytest.raises(RoarError, match="events .* are steps"):
-        run_job(load_job(job))
+@pytest.mark.parametrize("which,event,fn", [
+    (CAMERA_BOUNDED, "primitive camera::snap starts", lambda ev: "starts camera::snap" in ev),
+    (CAMERA_BOUNDED, "primitive camera::grab_frame starts", lambda ev: "starts camera::grab_frame" in ev),
+    (CAMERA_RETRY, "primitive camera::snap ends", lambda ev: "ends camera::snap" in ev),
+    (CAMERA_RETRY, "constraint sent to ptu", lambda ev: "sent ptu" in ev),
+], ids=["bounded-snap", "bounded-frame", "retry-snap-ends", "retry-sent-ptu"])
+def test_eventually_an_event_agrees_with_the_oracle(tmp_path, which, event, fn):
+    """`eventually EVENT` is violated when a run from the start never takes a step with the event
+    and ends, or closes a weakly fair cycle: checked on the plain enumerator's graph."""
+    o = oracle(which)
+    n = len(o.states)
+    out = {s: [] for s in range(n)}
+    for (a, b, agent), ev in zip(o.edges, o.events):
+        out[a].append((b, agent, fn(ev)))
+    region, todo = {0}, [0]
+    while todo:
+        u = todo.pop()
+        for b, _agent, hit in out[u]:
+            if not hit and b not in region:
+                region.add(b)
+                todo.append(b)
+    violated = any(not out[u] for u in region)
+    g = nx.DiGraph()
+    moves: dict = {}
+    for a in region:
+        for b, agent, hit in out[a]:
+            if not hit and b in region:
+                g.add_edge(a, b)
+                moves.setdefault((a, b), set()).add(agent)
+    for comp in nx.strongly_connected_components(g):
+        inner = [(a, b) for a in comp for b in g.successors(a) if b in comp]
+        if inner and set.intersection(*({x[1] for x in out[s]} for s in comp)) <= set().union(*(moves[e] for e in inner)):
+            violated = True
+    res = run_job(load_job(_job(tmp_path, which, f'[temporal]\nev = "eventually {event}"\n')))
+    assert res.verdicts["ev"].status == ("violated" if violated else "holds"), res.verdicts["ev"].message
 
 
 @pytest.mark.parametrize("which,progress,fn", [
@@ -648,3 +680,47 @@ def test_robot_backed_jobs_decide_the_spec_properties_and_a_horizon_is_no_end(tm
     assert res.backend == "robot" and res.robot.horizon_states > 0
     assert {p: v.status for p, v in res.verdicts.items()} == {
         "mission-completion": "holds", "mission-failure": "holds", "ends": "holds", "invariant": "holds"}
+
+
+# ------------------------------------------------------------------ events in temporal forms
+
+
+def test_eventually_and_leads_to_read_events(tmp_path):
+    """`eventually EVENT` is decided on steps: a run reaches it by taking a step on which the event
+    happens; `EVENT leads-to P` starts from the states such steps reach."""
+    (tmp_path / "p.toml").write_text(
+        "[temporal]\n"
+        "snap-happens = \"eventually primitive camera::snap starts\"\n"
+        "frame-happens = \"eventually primitive camera::grab_frame starts\"\n"
+        "snap-then-done = \"primitive camera::snap ends leads-to request R0 finished\"\n")
+    (tmp_path / "job.toml").write_text(
+        f"name = \"camera_events\"\nspec = \"{CAMERA_BOUNDED[0]}\"\nrequest = \"{CAMERA_BOUNDED[1]}\"\n"
+        "properties = [\"p.toml\"]\n[expect]\nframe-happens = \"violated\"\n")
+    res = with_big_stack(lambda: run_job(load_job(tmp_path / "job.toml")))
+    assert res.ok, res.mismatches
+    v = res.verdicts
+    assert v["snap-happens"].status == "holds" and v["snap-then-done"].status == "holds"
+    frame = v["frame-happens"]
+    assert frame.status == "violated" and frame.message.startswith(
+        "a run ends without 'primitive camera::grab_frame starts'")
+    # its run is a complete run (it ends) on which no step starts grab_frame
+    from roar_formal.roar.props import step_events
+    model, _start, explorer = res.roar
+    cx = frame.counterexample
+    assert cx.kind == "path" and not cx.cycle
+    assert not explorer.system.successors(explorer.states[cx.final_state])
+    events = [step_events(model, explorer.steps[e]) for e in cx.prefix]
+    assert any(("starts", "camera", "snap") in ev for ev in events)
+    assert not any(("starts", "camera", "grab_frame") in ev for ev in events)
+
+
+@pytest.mark.parametrize("prop,message", [
+    ("always primitive camera::snap starts", "events (primitive ... starts, constraint sent to ...) are steps, not states"),
+    ("primitive camera::snap starts", "an event alone is not a temporal property"),
+])
+def test_events_where_a_state_is_needed_are_refused(tmp_path, prop, message):
+    (tmp_path / "p.toml").write_text(f"[temporal]\nx = \"{prop}\"\n")
+    (tmp_path / "job.toml").write_text(
+        f"name = \"j\"\nspec = \"{CAMERA_BOUNDED[0]}\"\nrequest = \"{CAMERA_BOUNDED[1]}\"\nproperties = [\"p.toml\"]\n")
+    with pytest.raises(RoarError, match=re.escape(message)):
+        run_job(load_job(tmp_path / "job.toml"))

@@ -219,3 +219,39 @@ def test_a_temporal_property_chooses_strong_fairness(tmp_path, roar_cli):
     assert "arrives-strong: holds" in out and "under strong fairness per agent" in out
     code, out, err = job("[temporal]\nx = { formula = \"eventually request R0 succeeded\", fairness = \"sometimes\" }\n")
     assert code == 2 and "p.toml:2:" in err and "fairness must be 'weak'" in err, err
+
+
+def eventually_step_oracle(n: int, edges: list, hit: set, strong: bool) -> bool:
+    """Is 'eventually E' violated from state 0, E holding on the edges ``hit`` (indices): a run
+    that never takes one of them and ends, or closes a fair cycle?"""
+    region, todo = {0}, [0]
+    while todo:
+        u = todo.pop()
+        for i, (s, t, _g, _p) in enumerate(edges):
+            if s == u and i not in hit and t not in region:
+                region.add(t)
+                todo.append(t)
+    if any(not any(s == u for s, _t, _g, _p in edges) for u in region):
+        return True
+    inner = [(s, t, g, i in hit or not (s in region and t in region)) for i, (s, t, g, _p) in enumerate(edges)]
+    return oracle(n, inner, strong)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(graphs(), st.booleans(), st.sets(st.integers(0, 13), max_size=4))
+def test_eventually_an_event_matches_the_oracle(gr, strong, hit_ids):
+    import numpy as np
+    from roar_formal.roar.props import check_eventually
+    n, edges = gr
+    g, kept = build(n, edges)
+    hit = {i for i in hit_ids if i < len(kept)}
+    emask = np.zeros(len(kept), dtype=bool)
+    emask[list(hit)] = True
+    seeds = np.zeros(g.n_states, dtype=bool)
+    seeds[0] = True
+    v = check_eventually(g, "p", np.zeros(g.n_states, dtype=bool), seeds, lambda s: "ends", lambda s, k: "cycles",
+                         "holds", strong=strong, target_edges=emask)
+    assert v.violated == eventually_step_oracle(g.n_states, kept, hit, strong), (kept, hit, v.message)
+    if v.violated:   # the counterexample never takes a goal step
+        cx = v.counterexample
+        assert not emask[list(cx.prefix) + list(cx.cycle or [])].any()
