@@ -118,7 +118,8 @@ class CompiledModel:
     candidates: dict[str, list] = field(default_factory=dict)   # cst -> (agent, task) the logic layer proved
     incompatible: dict[tuple[str, str], list[str]] = field(default_factory=dict)  # (agent, task) -> tasks it masks (4.3)
     hypotheses: dict[str, list] = field(default_factory=dict)    # cst -> (agent, task, hypothesis) candidates under a hypothesis
-    unused_rules: list[str] = field(default_factory=list)   # agent::rule the logic layer cannot use (they call functions)
+    unused_rules: list[str] = field(default_factory=list)
+    fair_outcomes: dict[str, str] = field(default_factory=dict)   # outcome rule -> its fairness group (fair=True)   # agent::rule the logic layer cannot use (they call functions)
 
     def program(self):
         """The CLF program (cached)."""
@@ -933,7 +934,10 @@ class _Compiler:
             budget_p = budget_o = ""
             if bound is not None and not o.success:   # one failure fewer left (an assumption)
                 budget_p, budget_o = f" -o fails_left {fc} (s N)", f" * fails_left {fc} N"
-            rules.append(f"outcome_{fc}_{oname} : pending {fc} _ D{writes_p}{budget_p} -o {{{res}{writes_o}{budget_o}}}.")
+            rule = f"outcome_{fc}_{oname}"
+            if prim is not None and prim.fair and o.success:   # its own fairness group (strong fairness)
+                self.model.fair_outcomes[rule] = f"{f'{owner}::' if owner else ''}{name} -> {o.name}"
+            rules.append(f"{rule} : pending {fc} _ D{writes_p}{budget_p} -o {{{res}{writes_o}{budget_o}}}.")
         return rules
 
     def domain_rules(self) -> list[str]:

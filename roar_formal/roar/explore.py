@@ -109,10 +109,12 @@ class RoarSystem(ClfSystem):
         nxt, step = self.program.successor(state, choice)
         if self.pairs:
             self._monitor(state, nxt, step)
-        return Successor(choice.rule, self.agent_of(choice, state), self._progress(choice.rule), nxt, step)
+        return Successor(choice.rule, self._group_of(state, choice), self._progress(choice.rule), nxt, step)
 
     def _group_of(self, state: Context, choice) -> str:
-        return self.agent_of(choice, state)
+        """The fairness group: the agent taking the step, or a fair outcome's own group."""
+        fair = self.model.fair_outcomes.get(choice.rule)
+        return fair if fair is not None else self.agent_of(choice, state)
 
     def agent_of(self, choice, state: Context) -> str:
         """The agent that takes a step: the fairness group of weak fairness per agent."""

@@ -73,6 +73,9 @@ class Primitive:
     #: an assumption about the functional layer for exploration: the failing outcomes happen at
     #: most this many times in a run (None: any number of times)
     max_failures: Optional[int] = None
+    #: an assumption for exploration: the successful outcomes are fair (a call retried forever
+    #: succeeds at last), decided under strong fairness (each has its own fairness group)
+    fair: bool = False
 
     def __call__(self, *args):
         if self.fn is None:
@@ -131,12 +134,15 @@ class Registry:
     # -- registration --------------------------------------------------------
     def register(self, name: str, fn: Optional[Callable] = None,
                  outcomes: Optional[Iterable[Outcome]] = None, *, replace: bool = False,
-                 max_failures: Optional[int] = None):
+                 max_failures: Optional[int] = None, fair: bool = False):
         """Bind ``name`` to ``fn`` with its abstract ``outcomes`` (default: success or failure).
 
         ``max_failures`` bounds how many times, in one explored run, the primitive's failing
         outcomes may happen (an assumption about the functional layer: "the gripper fails at
-        most twice"); past it only its successful outcomes remain.
+        most twice"); past it only its successful outcomes remain. ``fair`` says a call retried
+        forever succeeds at last: each successful outcome is its own fairness group, so under
+        strong fairness (``[livelock] strength = "strong"``, or a temporal property's
+        ``fairness = "strong"``) a run on which it is possible infinitely often takes it.
 
         Without ``fn`` the name is bound for exploration only, and the call
         returns a decorator that supplies the callable::
@@ -165,14 +171,16 @@ class Registry:
         if max_failures is not None and (not isinstance(max_failures, int) or isinstance(max_failures, bool)
                                          or max_failures < 0):
             raise RoarError(f"primitive '{name}': max_failures must be a whole number >= 0, not {max_failures!r}")
+        if fair and all(not o.success for o in outs):
+            raise RoarError(f"primitive '{name}': fair needs a successful outcome")
         if max_failures is not None and all(not o.success for o in outs):
             raise RoarError(f"primitive '{name}': max_failures needs a successful outcome to fall back on")
         if fn is not None and not callable(fn):
             raise RoarError(f"cannot register '{name}': {fn!r} is not callable")
-        self._prims[name] = Primitive(name, fn, outs, max_failures)
+        self._prims[name] = Primitive(name, fn, outs, max_failures, bool(fair))
 
         def decorate(f: Callable) -> Callable:
-            self._prims[name] = Primitive(name, f, outs, max_failures)
+            self._prims[name] = Primitive(name, f, outs, max_failures, bool(fair))
             return f
 
         return decorate if fn is None else fn

@@ -66,3 +66,34 @@ def test_a_bound_must_be_a_count_with_a_success_to_fall_back_on():
             reg.register("f", lambda: True, max_failures=bad)
     with pytest.raises(RoarError, match="needs a successful outcome"):
         reg.register("g", lambda: True, outcomes=[Outcome("broken", False)], max_failures=1)
+
+
+# ------------------------------------------------------------------ fair outcomes
+
+def _livelock(tmp_path, extra: str, strength: str):
+    from roar_formal.verify.jobs import load_job
+    spec = tmp_path / "grip.roar"
+    shutil.copy(ROOT / "models" / "faulty" / "retry_forever.roar", spec)
+    (tmp_path / "grip.py").write_text(MODULE.format(extra=extra))
+    (tmp_path / "p.toml").write_text(f'check = ["livelock"]\n[livelock]\nprogress = ["request R0 finished"]\n'
+                                     f'strength = "{strength}"\n')
+    (tmp_path / "job.toml").write_text('name = "grip"\nspec = "grip.roar"\nrequest = "hand::holding == true"\n'
+                                       'properties = ["p.toml"]\n')
+    return run_job(load_job(tmp_path / "job.toml")).verdicts["livelock"]
+
+
+@pytest.mark.parametrize("fair,strength,status", [
+    (False, "weak", "violated"), (False, "strong", "violated"),    # the hand itself keeps moving: no help
+    (True, "weak", "violated"),                                     # success is possible only now and then
+    (True, "strong", "holds"),                                      # ... and under strong fairness it is taken
+])
+def test_a_fair_outcome_ends_a_retry_loop_under_strong_fairness(tmp_path, fair, strength, status):
+    v = _livelock(tmp_path, ", fair=True" if fair else "", strength)
+    assert v.status == status, v.message
+    if status == "holds":
+        assert "strongly unfair" in v.message
+
+
+def test_fair_needs_a_successful_outcome():
+    with pytest.raises(RoarError, match="fair needs a successful outcome"):
+        Registry().register("g", lambda: True, outcomes=[Outcome("broken", False)], fair=True)
