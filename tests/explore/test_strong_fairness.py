@@ -156,48 +156,56 @@ def test_a_job_chooses_the_strength_of_fairness(tmp_path, roar_cli):
 # ------------------------------------------------------------------ eventually / leads-to
 
 
-def eventually_oracle(n: int, edges: list, target: set, strong: bool) -> bool:
-    """Is 'eventually target' violated from state 0: a run through non-target states that ends,
-    or that closes a (weakly / strongly) fair cycle of non-target states?"""
+def eventually_oracle(n: int, edges: list, target: set, hit: set, strong: bool) -> bool:
+    """Is 'eventually goal' violated from state 0, the goal being a ``target`` state or a step on
+    one of the edges ``hit`` (indices): a run that never reaches it and ends, or closes a (weakly /
+    strongly) fair cycle?"""
     if 0 in target:
         return False
     region, todo = {0}, [0]
     while todo:
         u = todo.pop()
-        for s, t, _g, _p in edges:
-            if s == u and t not in target and t not in region:
+        for i, (s, t, _g, _p) in enumerate(edges):
+            if s == u and i not in hit and t not in target and t not in region:
                 region.add(t)
                 todo.append(t)
     if any(not any(s == u for s, _t, _g, _p in edges) for u in region):
         return True
-    # a fair cycle inside the region: edges leaving it (or touching a target) cannot be inside S
-    inner = [(s, t, g, not (s in region and t in region)) for s, t, g, _p in edges]
+    # a fair cycle inside the region: edges leaving it, or goal steps, cannot be inside S
+    inner = [(s, t, g, i in hit or not (s in region and t in region)) for i, (s, t, g, _p) in enumerate(edges)]
     return oracle(n, inner, strong)
 
 
-@settings(max_examples=200, deadline=None, derandomize=True)
-@given(graphs(), st.booleans(), st.sets(st.integers(0, 5), max_size=3))
-def test_eventually_verdicts_match_the_oracle(gr, strong, target_ids):
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(graphs(), st.booleans(), st.sets(st.integers(0, 5), max_size=3), st.sets(st.integers(0, 13), max_size=4))
+def test_eventually_verdicts_match_the_oracle(gr, strong, target_ids, hit_ids):
+    """Goal states, goal steps (events), or both; weak and strong fairness."""
     import numpy as np
     from roar_formal.roar.props import check_eventually
     n, edges = gr
     g, kept = build(n, edges)
     target = {t for t in target_ids if t < g.n_states}
+    hit = {i for i in hit_ids if i < len(kept)}
     tmask = np.zeros(g.n_states, dtype=bool)
     tmask[list(target)] = True
+    emask = np.zeros(len(kept), dtype=bool)
+    emask[list(hit)] = True
     seeds = np.zeros(g.n_states, dtype=bool)
     seeds[0] = True
-    v = check_eventually(g, "p", tmask, seeds, lambda s: "ends", lambda s, k: "cycles", "holds", strong=strong)
-    assert v.violated == eventually_oracle(g.n_states, kept, target, strong), (kept, target, v.message)
-    if v.violated and v.counterexample.kind == "lasso":   # the cycle is fair and avoids the target
+    v = check_eventually(g, "p", tmask, seeds, lambda s: "ends", lambda s, k: "cycles", "holds", strong=strong,
+                         target_edges=emask)
+    assert v.violated == eventually_oracle(g.n_states, kept, target, hit, strong), (kept, target, hit, v.message)
+    if v.violated:   # the run never reaches the goal; a cycle is fair
+        cx = v.counterexample
         a = g.arrays()
-        cyc = v.counterexample.cycle
         src, dst, grp = a["src"], a["dst"], a["group"]
-        states = {int(src[x]) for x in cyc}
-        assert not states & target
-        en = [{int(grp[e]) for e in range(len(src)) if src[e] == s} for s in states]
-        need = set().union(*en) if strong else set.intersection(*en)
-        assert need <= {int(grp[x]) for x in cyc}
+        taken = list(cx.prefix) + list(cx.cycle or [])
+        assert not emask[taken].any() and not tmask[[int(dst[e]) for e in taken]].any()
+        if cx.kind == "lasso":
+            states = {int(src[x]) for x in cx.cycle}
+            en = [{int(grp[e]) for e in range(len(src)) if src[e] == s} for s in states]
+            need = set().union(*en) if strong else set.intersection(*en)
+            assert need <= {int(grp[x]) for x in cx.cycle}
 
 
 def test_a_temporal_property_chooses_strong_fairness(tmp_path, roar_cli):
@@ -219,39 +227,3 @@ def test_a_temporal_property_chooses_strong_fairness(tmp_path, roar_cli):
     assert "arrives-strong: holds" in out and "under strong fairness per agent" in out
     code, out, err = job("[temporal]\nx = { formula = \"eventually request R0 succeeded\", fairness = \"sometimes\" }\n")
     assert code == 2 and "p.toml:2:" in err and "fairness must be 'weak'" in err, err
-
-
-def eventually_step_oracle(n: int, edges: list, hit: set, strong: bool) -> bool:
-    """Is 'eventually E' violated from state 0, E holding on the edges ``hit`` (indices): a run
-    that never takes one of them and ends, or closes a fair cycle?"""
-    region, todo = {0}, [0]
-    while todo:
-        u = todo.pop()
-        for i, (s, t, _g, _p) in enumerate(edges):
-            if s == u and i not in hit and t not in region:
-                region.add(t)
-                todo.append(t)
-    if any(not any(s == u for s, _t, _g, _p in edges) for u in region):
-        return True
-    inner = [(s, t, g, i in hit or not (s in region and t in region)) for i, (s, t, g, _p) in enumerate(edges)]
-    return oracle(n, inner, strong)
-
-
-@settings(max_examples=200, deadline=None, derandomize=True)
-@given(graphs(), st.booleans(), st.sets(st.integers(0, 13), max_size=4))
-def test_eventually_an_event_matches_the_oracle(gr, strong, hit_ids):
-    import numpy as np
-    from roar_formal.roar.props import check_eventually
-    n, edges = gr
-    g, kept = build(n, edges)
-    hit = {i for i in hit_ids if i < len(kept)}
-    emask = np.zeros(len(kept), dtype=bool)
-    emask[list(hit)] = True
-    seeds = np.zeros(g.n_states, dtype=bool)
-    seeds[0] = True
-    v = check_eventually(g, "p", np.zeros(g.n_states, dtype=bool), seeds, lambda s: "ends", lambda s, k: "cycles",
-                         "holds", strong=strong, target_edges=emask)
-    assert v.violated == eventually_step_oracle(g.n_states, kept, hit, strong), (kept, hit, v.message)
-    if v.violated:   # the counterexample never takes a goal step
-        cx = v.counterexample
-        assert not emask[list(cx.prefix) + list(cx.cycle or [])].any()
