@@ -189,8 +189,11 @@ def check_livelock(g: StateGraph, strong: bool = False) -> Verdict:
     inner &= expanded[np.minimum(dst, n - 1)]
     if strong:
         found = strong_fair_components(g, inner, src, dst, grp, expanded)
-        if found is None:
-            return _no_livelock(g, unfair=bool(inner.any()), strong=True)
+        if found is None:   # were there cycles without progress at all?
+            isrc, idst = src[inner], dst[inner]
+            comp = strongly_connected(n, isrc, idst) if len(isrc) else None
+            cyclic = comp is not None and bool(np.any(comp[isrc] == comp[idst]))
+            return _no_livelock(g, unfair=cyclic, strong=True)
         member, fair, ci, required, comp, cand_edges = found
     else:
         isrc, idst = src[inner], dst[inner]

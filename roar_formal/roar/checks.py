@@ -245,8 +245,53 @@ class _Checker:
             rs = sc.fresh(logic=True)
             for e in r.premises + r.conclusions:
                 self.cond(e, rs, f"rule '{r.name}'")
+            self.rule_variables(ag, r)
         for t in ag.tasks:
             self.task(ag, t, sc)
+
+    def rule_variables(self, ag: a.Agent, r: a.Rule) -> None:
+        """A rule's logic variables stand for expressions: each conclusion variable must be bound
+        by a premise (else the rule would conclude anything), a conjunct may not be a bare
+        variable, and each variable has one type across the rule."""
+        def logic(n: a.Node) -> bool:
+            return isinstance(n, a.Name) and n.name[:1].isupper() and ag.var(n.name) is None
+        what = f"rule '{r.name}'"
+        bound = {n.name for e in r.premises for n in a.walk(e) if logic(n)}
+        told: set[str] = set()
+        for e in r.conclusions:   # (inside a call, `|- distance(A, A) == 0.0`, a variable is fine)
+            for n in a.walk(e):
+                if not isinstance(n, a.Binary) or n.op not in a.COMPARISONS:
+                    continue
+                for x in (n.left, n.right):
+                    if logic(x) and x.name not in bound and x.name not in told:
+                        told.add(x.name)
+                        self.err("rule-unbound", x.pos,
+                                 f"{what}: logic variable '{x.name}' is a whole side of a conclusion but "
+                                 f"does not occur in a premise, so the rule would conclude this comparison "
+                                 f"of anything")
+        for e in r.premises + r.conclusions:
+            for c in a.conjuncts(e):
+                inner = c.operand if isinstance(c, a.Unary) and c.op == "!" else c
+                if logic(inner):
+                    self.err("rule-bare-variable", c.pos,
+                             f"{what}: '{_fmt(c)}' is a bare logic variable; a premise or conclusion is a "
+                             f"comparison or a bool variable of the agent")
+        seen: dict[str, tuple[str, Pos]] = {}
+        for e in r.premises + r.conclusions:
+            for n in a.walk(e):
+                if not isinstance(n, a.Binary) or n.op in a.LOGIC_OPS:
+                    continue
+                for x, y in ((n.left, n.right), (n.right, n.left)):
+                    t = self.typed.get(id(y), (None, None))[1]
+                    if not logic(x) or t is None:
+                        continue
+                    if x.name not in seen:
+                        seen[x.name] = (t, x.pos)
+                    elif seen[x.name][0] != t:
+                        t0, p0 = seen[x.name]
+                        self.err("rule-variable-type", x.pos,
+                                 f"{what}: logic variable '{x.name}' is {_show(t)} here but {_show(t0)} at "
+                                 f"{_at(p0, x.pos)}; a logic variable has one type in a rule")
 
     def var_init(self, ag: a.Agent, v: a.Var, sc: _Scope) -> None:
         init = v.init

@@ -41,7 +41,7 @@ from .checks import CheckedSpec, typed_request
 from .spec import checked_spec
 from ..clf.program import Program
 from .framework import extend_framework, extend_signature, framework_text, with_framework
-from .functional import DEFAULT_OUTCOMES, Outcome, Registry
+from .functional import DEFAULT_OUTCOMES, BindingError, Outcome, Registry
 from .incompatible import incompatible_tasks
 from .pretty import format_expr, format_stmt
 
@@ -950,6 +950,13 @@ class _Compiler:
         out = []
         for ag in self.spec.agents:
             own = {v.name for v in ag.vars}
+            # a rule is part of its agent's exported domain: it applies to the tasks of the agents
+            # that see that agent (itself, its importers, the agents of the same .roar file)
+            seers = [b for b in self.spec.agents if ag.name in self.spec.visible(b)]
+            scoped = len(seers) < len(self.spec.agents)
+            if scoped and ag.rules:
+                out.extend(f"scope_{self.task_c(b.name, t.name)}_{ag.name} : dom_scope "
+                           f"{self.task_c(b.name, t.name)} a_{ag.name}." for b in seers for t in b.tasks)
             for rule in ag.rules:
                 exprs = list(rule.premises) + list(rule.conclusions)
                 if any(isinstance(n, (a.Call, a.LastError)) for e in exprs for n in a.walk(e)):
@@ -964,7 +971,8 @@ class _Compiler:
                 for i, c in enumerate(x for e in rule.conclusions for x in a.conjuncts(e)):
                     name = f"dom_{ag.name}_{rule.name}_{i}"
                     concl = f"hyp {'(s N)' if prem else '_'} T (fatom {self.pexp(c, cx)})"
-                    out.append(f"{name} : {concl}" + "".join(f" <- hyp N T (fatom {q})" for q in prem) + ".")
+                    scope = f" <- dom_scope T a_{ag.name}" if scoped else ""
+                    out.append(f"{name} : {concl}{scope}" + "".join(f" <- hyp N T (fatom {q})" for q in prem) + ".")
         return out
 
     def candidates(self, sig) -> str:
@@ -1101,6 +1109,10 @@ def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[R
     checked = checked_spec(spec)
     if registry is not None and functional == "python":
         registry.resolve(checked.spec)   # every call bound, with the right number of arguments (located)
+    elif registry is not None:
+        unused = registry.assumption_errors(checked.spec)
+        if unused:
+            raise BindingError(unused)
     req, typed = typed_request(checked, request)
     if req.target() is None:
         raise RoarError("the request must name exactly one agent", req.pos)

@@ -76,6 +76,8 @@ class Primitive:
     #: an assumption for exploration: the successful outcomes are fair (a call retried forever
     #: succeeds at last), decided under strong fairness (each has its own fairness group)
     fair: bool = False
+    #: where it was registered (the caller of Registry.register), for located errors
+    where: Optional[Pos] = field(default=None, compare=False)
 
     def __call__(self, *args):
         if self.fn is None:
@@ -118,6 +120,15 @@ class Binding:
         return self.functions[f"{owner}::{name}" if owner else name]
 
 
+def _caller() -> Optional[Pos]:
+    """Where the user's code called into this module (the first frame outside it)."""
+    import sys
+    f = sys._getframe(1)
+    while f is not None and f.f_code.co_filename == __file__:
+        f = f.f_back
+    return Pos(f.f_code.co_filename, f.f_lineno, 1) if f is not None else None
+
+
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(::[A-Za-z_][A-Za-z0-9_]*)?")
 
 
@@ -150,37 +161,43 @@ class Registry:
             @registry.register("distance", outcomes=[...])
             def distance(p, q): ...
         """
+        where = _caller()
+
+        def bad(msg: str) -> RoarError:
+            return RoarError(msg, where)
         if not isinstance(name, str) or not _NAME.fullmatch(name):
-            raise RoarError(f"cannot register {name!r}: a primitive is named 'f' or 'agent::f'")
+            raise bad(f"cannot register {name!r}: a primitive is named 'f' or 'agent::f'")
         if name in self._prims and not replace:
-            raise RoarError(f"'{name}' is already registered (pass replace=True to rebind it)")
+            raise bad(f"'{name}' is already registered (pass replace=True to rebind it)")
         outs = tuple(outcomes) if outcomes is not None else DEFAULT_OUTCOMES
         if not outs:
-            raise RoarError(f"primitive '{name}' needs at least one outcome")
+            raise bad(f"primitive '{name}' needs at least one outcome")
         seen = set()
         for o in outs:
             if not isinstance(o, Outcome):
-                raise RoarError(f"primitive '{name}': {o!r} is not an Outcome")
+                raise bad(f"primitive '{name}': {o!r} is not an Outcome")
             if o.name in seen:
-                raise RoarError(f"primitive '{name}' has two outcomes named '{o.name}'")
+                raise bad(f"primitive '{name}' has two outcomes named '{o.name}'")
             seen.add(o.name)
             for var in o.writes:
                 if not isinstance(var, str) or not _NAME.fullmatch(var):
-                    raise RoarError(f"outcome '{o.name}' of '{name}' writes {var!r}: "
-                                    f"a variable is named 'var' or 'agent::var'")
+                    raise bad(f"outcome '{o.name}' of '{name}' writes {var!r}: "
+                              f"a variable is named 'var' or 'agent::var'")
         if max_failures is not None and (not isinstance(max_failures, int) or isinstance(max_failures, bool)
                                          or max_failures < 0):
-            raise RoarError(f"primitive '{name}': max_failures must be a whole number >= 0, not {max_failures!r}")
+            raise bad(f"primitive '{name}': max_failures must be a whole number >= 0, not {max_failures!r}")
+        if not isinstance(fair, bool):
+            raise bad(f"primitive '{name}': fair must be True or False, not {fair!r}")
         if fair and all(not o.success for o in outs):
-            raise RoarError(f"primitive '{name}': fair needs a successful outcome")
+            raise bad(f"primitive '{name}': fair needs a successful outcome")
         if max_failures is not None and all(not o.success for o in outs):
-            raise RoarError(f"primitive '{name}': max_failures needs a successful outcome to fall back on")
+            raise bad(f"primitive '{name}': max_failures needs a successful outcome to fall back on")
         if fn is not None and not callable(fn):
-            raise RoarError(f"cannot register '{name}': {fn!r} is not callable")
-        self._prims[name] = Primitive(name, fn, outs, max_failures, bool(fair))
+            raise bad(f"cannot register '{name}': {fn!r} is not callable")
+        self._prims[name] = Primitive(name, fn, outs, max_failures, fair, where)
 
         def decorate(f: Callable) -> Callable:
-            self._prims[name] = Primitive(name, f, outs, max_failures, bool(fair))
+            self._prims[name] = Primitive(name, f, outs, max_failures, fair, where)
             return f
 
         return decorate if fn is None else fn
@@ -211,6 +228,30 @@ class Registry:
         return p(*args)
 
     # -- resolution ----------------------------------------------------------
+    def assumption_errors(self, spec: a.Spec) -> list[RoarError]:
+        """An assumption (``max_failures``, ``fair``) about a primitive that nothing in the spec
+        calls would silently apply to nothing (a misspelt name): one located error each."""
+        used = set()
+        for ag in spec.agents:
+            for _where, node in _executable(ag):
+                for call in a.calls(node):
+                    for owner, _decl in spec.resolve_function(ag, call) or [(None, None)]:
+                        prim = self.lookup(call.name, owner)
+                        if prim is not None:
+                            used.add(prim.name)
+            for var in ag.task_initialised():
+                used.add(f"{ag.name}::{var}")
+        errors = []
+        for prim in self._prims.values():
+            if prim.name not in used and (prim.max_failures is not None or prim.fair):
+                what = " and ".join(x for x in (f"max_failures={prim.max_failures}" if prim.max_failures is not
+                                                None else "", "fair=True" if prim.fair else "") if x)
+                errors.append(RoarError(
+                    f"primitive '{prim.name}' is registered with {what}, but no function the spec calls and "
+                    f"no task-initialised variable has that name, so the assumption would apply to nothing; "
+                    f"check the name ('f' or 'agent::f')", prim.where))
+        return errors
+
     def resolve(self, spec: a.Spec) -> Binding:
         """Bind every function the spec calls; raise :class:`BindingError` listing each unbound use.
 
@@ -253,6 +294,7 @@ class Registry:
                 if prim is not None:
                     variables[f"{ag.name}::{var}"] = prim
                     errors += _check_writes(spec, prim, ag.name, ag.var(var).pos)
+        errors += self.assumption_errors(spec)
         if errors:
             seen, unique = set(), []
             for e in sorted(errors, key=_ekey):

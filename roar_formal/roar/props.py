@@ -614,6 +614,10 @@ class _Binder:
                 if a not in self.agents:
                     raise self.error(n, f"unknown agent '{a}'{did_you_mean(a, self.agents)}; the agents are: "
                                      f"{', '.join(self.agents)}", col)
+                if a not in owners:   # the event could never happen: a property that checks nothing
+                    raise self.error(n, f"agent '{a}' exports no function the spec calls, so 'primitive {a} "
+                                     f"{word}' never happens; the agents whose primitives are called: "
+                                     f"{', '.join(owners) or 'none'}", col)
                 return (lambda view, a=a, word=word: any(e[0] == word and e[1] == a for e in view.events)), "bool"
             self.agent_name(n, a, col)
             names = sorted(x for o, x in fns if o == a)
@@ -855,7 +859,8 @@ def check_eventually(g, prop: str, target: np.ndarray, seeds: np.ndarray, why_en
     cx = Counterexample("lasso", prefix, cycle, final_state=s)
     reason = why_cycle(s, len(cycle))
     names = sorted({g.groups.names[int(grp[e])] for e in cycle})
-    return Verdict(prop, "violated", f"{reason}: a fair cycle of {len(cycle)} steps reached in {len(prefix)} "
+    kind = "a strongly fair cycle" if strong else "a fair cycle"
+    return Verdict(prop, "violated", f"{reason}: {kind} of {len(cycle)} steps reached in {len(prefix)} "
                    f"steps (agents moving: {', '.join(names)})", cx, {"reason": reason, "seed": u})
 
 

@@ -365,8 +365,13 @@ class Narrator:
                 if s == "s_sent" and r not in old:
                     continue
                 prev = old.get(r)
+                why = ""
+                if s == "s_tempfail" and st.rule.startswith("ensure_broken"):
+                    why = ": the ensured predicate stopped holding"
+                elif s == "s_tempfail" and st.rule.startswith("ensure_unmet"):
+                    why = ": its tasks ran but the ensured predicate does not hold"
                 yield RoarEvent(st.i, "state", agent, f"{lab} {STATE_NAMES.get(prev, 'new') if prev else 'new'}"
-                                f" -> {STATE_NAMES[s]}  ({text})",
+                                f" -> {STATE_NAMES[s]}  ({text}){why}",
                                 {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s],
                                  **self.req_meta.get(lab, {})})
         for x in map(V.rs, st.used(V.RS)):

@@ -997,11 +997,15 @@ class ClfRun:
 def replay(trace: PathLike, model: Optional[PathLike] = None, *, functional: Optional[PathLike] = None,
            force: bool = False) -> "Replay":
     """Replay a trace (a counterexample from :meth:`Exploration.save_counterexamples` or
-    ``check``, or a run's trace) step by step on ``model`` (a spec or a ``.clf`` program; the
-    trace's own when None), as ``roar-verify replay`` does. A step the model cannot take, or a
+    ``check``, or a run's trace) step by step on ``model`` (a spec or a ``.clf`` program: the
+    trace's own is never opened), as ``roar-verify replay`` does. A step the model cannot take, or a
     trace of another version of the spec (unless ``force``), is a :class:`RoarError`."""
     from ..clf.query import with_big_stack
     from ..verify.replay import replay_trace
+    if model is None:
+        raise RoarError(f"{trace}: replay(trace, model) needs the model to replay on (a ROAR spec, whose "
+                        f"functional-layer module next to it is used, or a .clf file): a trace is data, and the "
+                        f"files it names are never opened")
     rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
     return Replay(Path(trace), rep)
 
@@ -1047,6 +1051,8 @@ class Replay:
 
     def state(self, i: int) -> dict:
         """The state after step ``i`` (0: the start): per agent for a spec, ``{"facts": [...]}`` otherwise."""
+        if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i <= self.steps:
+            raise IndexError(f"state {i!r}: this replay has states 0 (the start) to {self.steps}")
         return self._rep.state_table(i)
 
     def step_lines(self, i: int, verbose: bool = False, always: bool = False) -> Lines:

@@ -26,6 +26,7 @@ from ..errors import RoarError
 from ..trace.format import write_trace
 from ..explore.graph import StateGraph
 from ..explore.ground import GroundExplorer, GroundModel, GroundingStopped, NotGround
+from .claims import trace_claim
 from .jobs import Job
 from ..explore.properties import check_states, Verdict, check_deadlock, check_livelock
 from ..explore.search import Budget, Explorer, rss_mb
@@ -479,6 +480,10 @@ def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
             _i, why, t, pose = node.bad[0]
             header_pairs["robot"]["violation"] = {"t": round(t, 4), "pose": [round(x, 6) for x in pose],
                                                   "why": why}
+    if robot is None:   # what replay re-decides on the model (verify/claims.py)
+        claim = trace_claim(job, prop)
+        if claim:
+            header_pairs["claim"] = claim
     header = {"kind": "counterexample", "property": prop, **where, **header_pairs, "fingerprint": result.fingerprint,
               "job": str(result.job.path), "shape": v.counterexample.kind,
               "final_state": result.graph.describe_state(v.counterexample.final_state)

@@ -220,6 +220,8 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                                 f"'strong' (a process enabled infinitely often moves infinitely often), not '{st}'",
                                 _value_pos(path, "strength"))
             spec.strong = st == "strong"
+        if "livelock" not in spec.check:   # a [livelock] table says how to check it: so it is checked
+            spec.check.append("livelock")
     if "sequential-achievement" in d:
         sa = _typed(d, "sequential-achievement", dict, path, "a property file")
         _expect_keys(sa, {"recipes"}, "[sequential-achievement]", path)
@@ -284,6 +286,10 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                                 f"\"P leads-to Q\" (docs/checking.md), or a table {{ formula = \"...\", "
                                 f"fairness = \"strong\" }}", where)
             spec.temporal[name] = parse_formula(text, _string_pos(path, name, text))
+            if name in spec.temporal_strong and spec.temporal[name].form in ("always", "state"):
+                raise RoarError(f"[temporal] {name}: fairness applies to 'eventually' and 'leads-to' (it says "
+                                f"which cycles count); {text!r} is decided on states alone, so fairness = "
+                                f"\"strong\" would change nothing", _value_pos(path, "fairness"))
             if name not in spec.check:
                 spec.check.append(name)
     if "deadlock" in d:

@@ -18,7 +18,8 @@ from ..clf.program import Program
 from ..clf.query import show_context
 from ..errors import Pos, RoarError
 from ..explore.replay import ReplayResult, replay_steps, start_index
-from ..explore.system import Options
+from ..explore.system import ClfSystem, Options
+from .claims import claim_groups, confirm_claim
 from ..roar.compile import CompiledModel, compile_spec
 from ..roar.explore import PROGRESS_RULES, RoarSystem, path_narration, roar_final, sequential_pairs
 from ..roar.report import decode_state, step_changes
@@ -134,6 +135,11 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
 
         def make_system(prog: Program, begin: Context) -> RoarSystem:
             return RoarSystem(compiled, begin, Options(progress_rules=PROGRESS_RULES), pairs)
+    elif claim_groups(path, header) is not None:   # the processes the .clf job was checked with
+        groups = claim_groups(path, header)
+
+        def make_system(prog: Program, begin: Context) -> ClfSystem:
+            return ClfSystem(prog, begin, Options(fairness=groups))
     else:
         make_system = None
     res = replay_steps(path, program, start, records, on_step, notes, make_system)
@@ -150,7 +156,8 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
         requests = {lab: {"agent": a, "constraint": t} for lab, (a, t) in sorted(
             nar.req_info.items(), key=lambda kv: (len(kv[0]), kv[0]))}
         labels = (nar.labels, nar.req_info)
-    confirmed, why = _confirm(header, res, compiled)
+    decided = confirm_claim(path, header, res, compiled)
+    confirmed, why = decided if decided is not None else _confirm(header, res, compiled)
     return TraceReplay(header, res, compiled, steps, requests, confirmed, why, labels)
 
 

@@ -238,6 +238,7 @@ def test_syntax_errors_are_located_with_what_was_expected(text, col, words):
     ("agent ptuu idle", ["unknown agent 'ptuu'", "did you mean 'ptu'"]),
     ("ptu::heading", ["is int, not a condition"]),
     ("ptu::heading < true", ["compares numbers"]),
+    ("primitive ptu starts", ["agent 'ptu' exports no function the spec calls", "never happens", "camera"]),
 ])
 def test_names_and_types_are_resolved_against_the_spec_with_located_errors(tmp_path, text, words):
     job = _job(tmp_path, CAMERA_BOUNDED, f'[invariant]\nnever = ["{text}"]\n')
@@ -532,6 +533,12 @@ def test_eventually_and_leads_to_agree_with_the_oracle(tmp_path, which, text, se
         seed_at = max(i for i, s in enumerate(visited[:len(v.counterexample.prefix) + 1])
                       if (f.q is None and i == 0) or (f.q is not None and f.pf(view_of(model, explorer.states[s]))))
         assert not any(goal_of(view_of(model, explorer.states[s])) for s in visited[seed_at:])
+        # the saved trace carries the claim, and replay re-decides it on the model (verify/claims.py)
+        from roar_formal.verify.check import save_counterexample
+        from roar_formal.verify.replay import replay_trace
+        trace = save_counterexample(res, "prop", tmp_path)
+        rep = replay_trace(trace, which[0])
+        assert rep.confirmed is True, rep.confirmation
 
 
 @pytest.mark.parametrize("which,text,fn", [
@@ -724,3 +731,25 @@ def test_events_where_a_state_is_needed_are_refused(tmp_path, prop, message):
         f"name = \"j\"\nspec = \"{CAMERA_BOUNDED[0]}\"\nrequest = \"{CAMERA_BOUNDED[1]}\"\nproperties = [\"p.toml\"]\n")
     with pytest.raises(RoarError, match=re.escape(message)):
         run_job(load_job(tmp_path / "job.toml"))
+
+
+def test_fairness_on_always_and_an_unchecked_livelock_table_are_not_silent(tmp_path):
+    (tmp_path / "p.toml").write_text('[temporal]\nx = { formula = "always ptu::heading >= 0", fairness = "strong" }\n')
+    (tmp_path / "job.toml").write_text(
+        f"name = \"j\"\nspec = \"{CAMERA_BOUNDED[0]}\"\nrequest = \"{CAMERA_BOUNDED[1]}\"\nproperties = [\"p.toml\"]\n")
+    with pytest.raises(RoarError, match="fairness applies to 'eventually' and 'leads-to'") as e:
+        load_job(tmp_path / "job.toml")
+    assert e.value.pos.file.endswith("p.toml") and e.value.pos.line == 2
+    # a [livelock] table without livelock in check: the table says how to check it, so it is checked
+    (tmp_path / "p.toml").write_text('check = ["deadlock"]\n[livelock]\nprogress = ["request R0 finished"]\n')
+    job = load_job(tmp_path / "job.toml")
+    assert job.props.check == ["deadlock", "livelock"]
+    res = run_job(job)
+    assert res.verdicts["livelock"].status == "holds" and res.verdicts["deadlock"].status == "holds"
+
+
+def test_a_strongly_fair_counterexample_says_so(tmp_path):
+    j = _job(tmp_path, CAMERA_RETRY, '[temporal]\nends = { formula = "request R0 running leads-to request R0 finished", '
+                                     'fairness = "strong" }\n')
+    v = run_job(load_job(j)).verdicts["ends"]
+    assert v.status == "violated" and "a strongly fair cycle of" in v.message

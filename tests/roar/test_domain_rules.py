@@ -4,6 +4,8 @@ misses, logic variables range over expressions, and a rule over functions is rep
 
 from __future__ import annotations
 
+import pytest
+
 from roar_formal.roar.compile import compile_spec
 from roar_formal.roar.parser import parse_roar
 from roar_formal.roar.run import run_model
@@ -72,3 +74,87 @@ def test_rules_over_functions_are_listed_as_unused():
     m = compile_spec(load_spec(ROOT / "models" / "mana_nav.roar"),
                      "locomotion::arrived == true where locomotion::gx == 3.0 && locomotion::gy == 4.0")
     assert m.unused_rules == ["planner::dist_sym", "planner::dist_zero"]
+
+
+def _agent(name: str, rules: str, imports: str = "") -> str:
+    return f"""{imports}
+{name} = ability {{
+  context = {{
+    {{ }}
+    {{ int level = 0; }}
+    {{ }}
+  }}
+  export = {{
+    {{ }}
+    {{ }}
+    {{ {rules} }}
+  }}
+  tasks = {{
+    raise_it = task {{
+      pre = {{ }}
+      post = {{ {{level > 5}} }}
+      recipes = {{ r = recipe {{ body = {{ set level 6; }} }} }}
+    }}
+  }}
+}}
+"""
+
+
+def test_a_rule_applies_to_the_agents_that_see_its_agent(tmp_path):
+    """A rule is part of its agent's exported domain: the agent itself, its importers and the
+    agents of the same .roar file use it; an agent that does not see the exporter does not."""
+    from roar_formal.roar.spec import load_spec
+    (tmp_path / "lib.roar").write_text(_agent("arm", "gt = X > 5 |- X > 3;"))
+    (tmp_path / "blind.roar").write_text(_agent("cam", ""))
+    (tmp_path / "seeing.roar").write_text(_agent("ptu", "", 'import "lib.roar"'))
+    (tmp_path / "main.roar").write_text(_agent("user", "", 'import "blind.roar"\nimport "seeing.roar"\nimport "lib.roar"'))
+    spec = load_spec(tmp_path / "main.roar")
+    for agent, sees in (("arm", True), ("ptu", True), ("user", True), ("cam", False)):
+        m = compile_spec(spec, f"{agent}::level > 3")
+        assert list(m.candidates.values()) == [[(agent, "raise_it")] if sees else []], agent
+        assert run_model(m).outcome == ("success" if sees else "failure"), agent
+    # without the rule nobody proves it: the scope is what differs above
+    (tmp_path / "lib.roar").write_text(_agent("arm", ""))
+    m = compile_spec(load_spec(tmp_path / "main.roar"), "ptu::level > 3")
+    assert list(m.candidates.values()) == [[]]
+
+
+@pytest.mark.parametrize("rule, where, message", [
+    ("r = X == Y |- Z == Y;", "10:21", "logic variable 'Z' is a whole side of a conclusion but does not occur"),
+    ("r = |- X == 1;", "10:14", "logic variable 'X' is a whole side of a conclusion"),
+    ("r = X |- calibrated == true;", "10:11", "'X' is a bare logic variable"),
+    ("r = calibrated == true |- !X;", "10:33", "'!X' is a bare logic variable"),
+    ("r = pos == X, X == true |- ready == true;", "10:21", "logic variable 'X' is bool here but int at 10:18"),
+])
+def test_rules_that_would_conclude_anything_are_refused_at_their_place(tmp_path, rule, where, message):
+    from roar_formal.roar.spec import load_spec
+    from roar_formal.roar.checks import SpecCheckError
+    path = tmp_path / "arm.roar"
+    path.write_text(_spec_text(rule))
+    with pytest.raises(SpecCheckError) as e:
+        load_spec(path)
+    text = "\n".join(f"{x.pos.line}:{x.pos.col}: {x}" for x in e.value.errors)
+    assert f"{where}: " in text and message in text, text
+
+
+def _spec_text(rule: str) -> str:
+    return f"""arm = ability {{
+  context = {{
+    {{ }}
+    {{ bool calibrated = false; bool ready = false; int pos = 0; }}
+    {{ }}
+  }}
+  export = {{
+    {{ }}
+    {{ }}
+    {{ {rule} }}
+  }}
+  tasks = {{
+    work = task {{
+      pre = {{ }}
+      post = {{ {{calibrated == true}} }}
+      recipes = {{ r = recipe {{ body = {{ set calibrated true; }} }} }}
+    }}
+  }}
+}}
+"""

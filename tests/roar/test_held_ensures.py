@@ -71,3 +71,27 @@ def test_the_fixed_twin_breaks_nothing():
     for r in runs:
         assert r.outcome == "success"
         assert not any("temporary failure" in t for _s, _a, t in _texts(r))
+
+
+def test_an_ensure_whose_tasks_never_establish_it_is_a_cycle_mission_completion_reports():
+    """The door's rule says a latched door is open; its only task latches without opening. The
+    ensure is handled again and again (a monitoring robot would do the same): no run ends, and
+    the default mission-completion check reports the cycle, with the reason on the lasso."""
+    from roar_formal import load_spec as api_load
+    spec = api_load(DATA / "ensure_never_met.roar")
+    model, runs = _runs(DATA / "ensure_never_met.roar", 3)
+    assert model.candidates and any(ts == [("door", "latch")] for ts in model.candidates.values())
+    for r in runs:   # (the independent check: plain runs never end, and keep re-handling R1)
+        assert r.outcome != "success"
+        unmet = [t for _s, _a, t in _texts(r)
+                 if t.startswith("R1 running -> temporary failure") and "tasks ran but the ensured" in t]
+        assert len(unmet) > 10
+    ex = spec.explore("user::done == true", properties=["deadlock", "mission-completion", "mission-failure"])
+    assert ex.verdicts["deadlock"].status == "holds"
+    assert ex.verdicts["mission-failure"].status == "holds"
+    v = ex.verdicts["mission-completion"]
+    assert v.status == "violated"
+    text = str(ex)
+    assert "-- cycle (repeats forever) --" in text
+    cycle = text.split("-- cycle (repeats forever) --")[1]
+    assert "R1: task latch, recipe turn" in cycle and "the ensured predicate does not hold" in cycle

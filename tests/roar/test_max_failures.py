@@ -97,3 +97,27 @@ def test_a_fair_outcome_ends_a_retry_loop_under_strong_fairness(tmp_path, fair, 
 def test_fair_needs_a_successful_outcome():
     with pytest.raises(RoarError, match="fair needs a successful outcome"):
         Registry().register("g", lambda: True, outcomes=[Outcome("broken", False)], fair=True)
+
+
+def test_registration_errors_point_at_the_users_call_and_fair_is_a_bool(tmp_path):
+    for extra, message in ((", fair='yes'", "fair must be True or False, not 'yes'"),
+                           (", max_failures=-2", "max_failures must be a whole number >= 0, not -2")):
+        with pytest.raises(RoarError, match=message) as e:
+            _explore(tmp_path, extra)
+        # the line of the register call in the user's module (grip.py line 5)
+        assert e.value.pos is not None and e.value.pos.file.endswith("grip.py") and e.value.pos.line == 5
+
+
+def test_an_assumption_about_a_primitive_the_spec_never_calls_is_refused_at_its_registration(tmp_path):
+    spec = tmp_path / "grip.roar"
+    shutil.copy(ROOT / "models" / "faulty" / "retry_forever.roar", spec)
+    (tmp_path / "grip.py").write_text(MODULE.format(extra="") + "\n\ndef _unused():\n    pass\n")
+    text = MODULE.format(extra="").replace("    return reg",
+                                           "    reg.register('gripp', lambda: True, max_failures=1)\n    return reg")
+    (tmp_path / "grip.py").write_text(text)
+    with pytest.raises(RoarError, match=r"primitive 'gripp' is registered with max_failures=1, but no function") as e:
+        run_job(job_for_model(spec, "hand::holding == true", ["deadlock"]))
+    assert e.value.pos.file.endswith("grip.py") and e.value.pos.line == 6
+    # without an assumption an extra primitive is fine (a module may serve several specs)
+    (tmp_path / "grip.py").write_text(text.replace(", max_failures=1", ""))
+    assert run_job(job_for_model(spec, "hand::holding == true", ["deadlock"])).verdicts["deadlock"].status == "holds"

@@ -123,6 +123,10 @@ def test_a_counterexample_prints_exactly_as_roar_verify_check(models, root, run_
     start, end = rep.state(0), rep.state(27)
     assert set(start) == set(end) == {"arm", "door"}
     assert start != end
+    with pytest.raises(IndexError, match="this replay has states 0 .the start. to 27"):
+        rep.state(28)
+    with pytest.raises(RoarError, match=r"replay\(trace, model\) needs the model"):
+        roar_formal.replay(path)
 
 
 def test_exploration_statistics_and_its_printed_form(models):
