@@ -458,6 +458,55 @@ class Context:
         return c
 
 
+class FrozenContext:
+    """A context kept only to be read back: its facts, rules and hypotheses without the
+    matching indexes (which :meth:`thaw` rebuilds). The explorer keeps visited states this way:
+    a few hundred bytes each instead of a context's tens of kilobytes (benchmark B8)."""
+
+    __slots__ = ("lin", "aff", "pers", "rules", "inert", "open", "implicit", "canon")
+
+    def __init__(self, ctx: "Context"):
+        # a multiset as its facts repeated (one pointer a fact; the order of first occurrence kept)
+        self.lin = tuple([t for t, n in ctx.lin.items() for _ in range(n)] if len(ctx.lin) < sum(ctx.lin.values())
+                         else ctx.lin)
+        self.aff = tuple([t for t, n in ctx.aff.items() for _ in range(n)]) if ctx.aff else ()
+        self.pers = tuple(ctx.pers) if ctx.pers else ()
+        self.rules = tuple(ctx.rules.values()) if ctx.rules else ()
+        self.inert = tuple(ctx.inert) if ctx.inert else ()
+        self.open = tuple(ctx.open) if ctx.open else ()
+        self.implicit = ctx.implicit
+        self.canon = ctx._canon[2] if ctx._canon is not None and ctx._canon[1] == len(ctx.inert) else None
+
+    def thaw(self) -> "Context":
+        """A context equal to the frozen one, its indexes built in the order its facts were added."""
+        c = Context()
+        c.lin = _counts(self.lin)
+        c.aff = _counts(self.aff)
+        c.pers = dict.fromkeys(self.pers)
+        c.index, c.by_arg = _build_index(c._facts_in_order())
+        for r0 in self.rules:
+            r = c.rules[r0.uid] = CtxRule(r0.uid, r0.alts, r0.env, r0.mode, r0.source, r0.keys, r0.open)
+            for k in r.keys:
+                b = c.rule_index.get(k)
+                if b is None:
+                    b = c.rule_index[k] = Bag()
+                b.add(r.uid)
+        c.inert = list(self.inert)
+        c.open = list(self.open)
+        c.implicit = self.implicit
+        c._dirty = set()   # its bags are in the order re-adding the facts gives: copies share them
+        if self.canon is not None:
+            c._canon = (c.inert, len(c.inert), self.canon)
+        return c
+
+
+def _counts(facts: tuple) -> dict:
+    d: dict = {}
+    for t in facts:
+        d[t] = d.get(t, 0) + 1
+    return d
+
+
 def _clone(b: Bag) -> Bag:
     c = _new_bag(Bag)
     c.items = b.items.copy()

@@ -79,18 +79,67 @@ class MemoryWatch:
         return False
 
 
+class StateStore:
+    """The visited states by id. A system with ``freeze``/``thaw`` (a CLF context without its
+    matching indexes) has its expanded states kept frozen, a few hundred bytes each, and thawed
+    when read again: the few read most recently stay thawed (properties read them in order).
+    States waiting in the frontier stay as they are (a successor shares its parent's indexes)."""
+
+    def __init__(self, system, keep: int = 8):
+        self.freeze = getattr(system, "freeze", None)
+        self.thaw = getattr(system, "thaw", None)
+        self.frozen = getattr(system, "frozen_type", None)
+        self.items: list = []
+        self.recent: dict = {}
+        self.keep = keep
+
+    def append(self, state) -> None:
+        self.items.append(state)
+
+    def done(self, i: int) -> None:
+        """State ``i`` is expanded: from now on it is only read back, so keep it frozen."""
+        if self.freeze is not None:
+            self.items[i] = self.freeze(self.items[i])
+            self.recent.pop(i, None)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, i: int):
+        x = self.items[i]
+        if self.thaw is None or not isinstance(x, self.frozen):
+            return x
+        if i < 0:
+            i += len(self.items)
+        hit = self.recent.get(i)
+        if hit is None:
+            hit = self.thaw(x)
+            if len(self.recent) >= self.keep:
+                del self.recent[next(iter(self.recent))]
+            self.recent[i] = hit
+        return hit
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self.items)))
+
+
 class Explorer:
     """Resumable BFS/DFS that records every state and transition in a :class:`StateGraph`."""
 
     def __init__(self, system: TransitionSystem, order: str = "bfs",
-                 on_progress: Optional[Callable[[dict], None]] = None):
+                 on_progress: Optional[Callable[[dict], None]] = None, visited: str = "exact"):
         if order not in ("bfs", "dfs"):
             raise ValueError("order must be 'bfs' or 'dfs'")
+        if visited not in ("exact", "hash"):
+            raise ValueError("visited must be 'exact' or 'hash'")
+        #: hash compaction (Holzmann): a visited state is remembered by a 64-bit hash of its key,
+        #: not the key; two states with one hash are taken for one (see omission_probability)
+        self.hashed = visited == "hash"
         self.system = system
         self.order = order
         self.on_progress = on_progress
         self.graph = StateGraph()
-        self.states: list = []  # state id -> state
+        self.states = StateStore(system)  # state id -> state (kept frozen when the system can)
         self.ids: dict = {}
         s0 = system.initial()
         self._add(s0, -1, -1, 0)
@@ -106,12 +155,32 @@ class Explorer:
             system, "reduced_successors")
         self.reduced_expansions = 0
         self.proviso_expansions = 0
+        self._rng = None   # shuffle(seed): successors taken in a random order (swarm searches)
+
+    def shuffle(self, seed: int) -> None:
+        """Take each state's successors in an order drawn from ``seed`` (a swarm's diversified
+        searches: each member explores a different part first)."""
+        import random
+        self._rng = random.Random(seed)
+
+    def _key(self, state):
+        k = self.system.key(state)
+        return hash(k) if self.hashed else k
 
     def _add(self, state, parent: int, edge: int, depth: int) -> int:
         sid = self.graph.add_state(parent, edge, depth)
         self.states.append(state)
-        self.ids[self.system.key(state)] = sid
+        self.ids[self._key(state)] = sid
         return sid
+
+    def omission_probability(self) -> float:
+        """Under hash compaction, a bound on the probability that two of the states visited share
+        a hash, so that one was taken for the other and never explored: n(n-1)/2 pairs, each
+        colliding with probability 2^-64 (0 for an exact search)."""
+        if not self.hashed:
+            return 0.0
+        n = self.graph.n_states
+        return min(1.0, n * (n - 1) / 2 / 2.0 ** 64)
 
     def run(self, budget: Budget = Budget()) -> StateGraph:
         g = self.graph
@@ -138,7 +207,9 @@ class Explorer:
                 succs, keys = self._expand_reduced(state, s)
             else:
                 succs = system.successors(state)
-                keys = [system.key(x.state) for x in succs]
+                if self._rng is not None:
+                    self._rng.shuffle(succs)
+                keys = [self._key(x.state) for x in succs]
             for succ, k in zip(succs, keys):
                 t = self.ids.get(k)
                 new = t is None
@@ -150,6 +221,7 @@ class Explorer:
                     self._add(succ.state, s, e, depth)
                     self.frontier.append(t)
             g.expanded[s] = 1
+            self.states.done(s)
             if self.on_progress is not None and now - last_report > 0.25:
                 last_report = now
                 self.on_progress(self.stats())
@@ -167,13 +239,13 @@ class Explorer:
         alone (each edge of a reduced expansion leads to a state discovered by it)."""
         system = self.system
         succs, rest, rest_groups = system.reduced_successors(state)
-        keys = [system.key(x.state) for x in succs]
+        keys = [self._key(x.state) for x in succs]
         if rest is None:
             return succs, keys
         if any(k in self.ids for k in keys):
             self.proviso_expansions += 1
             more = rest()
-            return succs + more, keys + [system.key(x.state) for x in more]
+            return succs + more, keys + [self._key(x.state) for x in more]
         self.reduced_expansions += 1
         # the groups the skipped steps belong to are still enabled here (weak fairness)
         self.graph.add_enabled(sid, rest_groups)

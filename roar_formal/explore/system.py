@@ -15,7 +15,7 @@ import fnmatch
 from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Optional, Protocol, Sequence, runtime_checkable
 
-from ..clf.context import Context
+from ..clf.context import Context, FrozenContext
 from ..clf.forward import inst
 from ..clf.program import Program
 from ..clf.query import show_context
@@ -89,6 +89,15 @@ class ClfSystem:
 
     def successors(self, state: Context) -> list[Successor]:
         return [self._successor(state, choice) for choice in self.program.steps(state)]
+
+    frozen_type = FrozenContext
+
+    def freeze(self, state: Context) -> FrozenContext:
+        """A visited state as the explorer keeps it (without matching indexes)."""
+        return FrozenContext(state)
+
+    def thaw(self, frozen: FrozenContext) -> Context:
+        return frozen.thaw()
 
     def _successor(self, state: Context, choice) -> Successor:
         nxt, step = self.program.successor(state, choice)

@@ -506,6 +506,10 @@ def _const_ticks(t) -> int:
 class RobotSystem(RoarSystem):
     """The compiled spec (run mode: calls stay pending) explored with the robot as its functional layer."""
 
+    freeze = None   # its states pair a context with a robot node: kept as they are
+    thaw = None
+    frozen_type = None
+
     def __init__(self, model: CompiledModel, start: Context, tree: RobotTree, choices: FaultChoices,
                  options: Optional[Options] = None, pairs=None):
         super().__init__(model, start, options, pairs)

@@ -908,6 +908,9 @@ class Exploration:
                                            for p, av, rv, why in robot.comparison]}
         for p, v in r.verdicts.items():
             d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
+            if "visited" in v.details:   # hash compaction: what the verdict is worth
+                d["visited"] = v.details["visited"]
+                d["omission_probability"] = v.details["omission_probability"]
             if v.counterexample is not None:
                 d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r),
                                        "report": counterexample_report(r, p)}

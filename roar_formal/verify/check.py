@@ -210,7 +210,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
         return verdicts
 
     def explore(opts: Options):
-        ex = Explorer(RoarSystem(model, start, opts, pairs), job.search, on_progress)
+        ex = Explorer(RoarSystem(model, start, opts, pairs), explorer_order(job), on_progress, job.visited)
         ctx_of = ex.states.__getitem__   # one per explorer: the decoded states are cached on it
         return ex, lambda g: decide(g, ex.states, ex.system, ctx_of, ex.steps.__getitem__)
 
@@ -218,7 +218,8 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     _mark_reduction(job, verdicts, reduction)
     mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
                   if verdicts[p].status != want]
-    res = JobResult(job, verdicts, graph, "general", time.perf_counter() - t0, rss_mb(), mismatches, program,
+    backend = "general" if job.visited == "exact" else "general, hash compaction"
+    res = JobResult(job, verdicts, graph, backend, time.perf_counter() - t0, rss_mb(), mismatches, program,
                     reduction, fingerprint)
     res.roar = (model, start, explorer)
     return res
@@ -282,8 +283,11 @@ def _search(job: Job, t0: float, explore, options: Options):
     graph. Under reduction with weak fairness, a livelock verdict of "holds" is confirmed on
     the unreduced graph: a reduced graph keeps every fair cycle it shows (fairness is judged
     with every enabled group, expanded or not) but may miss one (docs/checking.md)."""
+    if job.search == "swarm":
+        return swarm(job, t0, explore, options)
     explorer, decide = explore(options)
     graph, verdicts = search_rounds(job, t0, explorer, decide)
+    hashed_note(explorer, verdicts)
     lv = verdicts.get("livelock")
     if options.reduction and lv is not None and lv.status == "holds" and options.fairness != "none":
         full_options = replace(options, reduction=False)
@@ -299,6 +303,71 @@ def _search(job: Job, t0: float, explore, options: Options):
                 v.details["reduction"] = "missed a fair livelock; verdicts from the unreduced graph"
             return ex2, graph2, verdicts2
     return explorer, graph, verdicts
+
+
+def explorer_order(job: Job) -> str:
+    """The explorer's order for the job's search (a swarm's members search depth first)."""
+    return "dfs" if job.search == "swarm" else job.search
+
+
+def swarm(job: Job, t0: float, explore, options: Options):
+    """Search = "swarm": up to ``job.swarm_runs`` depth-first searches, each taking successors in
+    its own random order and visiting at most ``job.swarm_states`` states, until one finds a
+    violation (its counterexample is real but not the shortest) or covers the whole state space
+    (then the verdicts are those of a complete search). Otherwise no verdict is "holds": the
+    properties not found violated are "incomplete", with what the swarm covered."""
+    total = 0
+    last = None
+    for i in range(job.swarm_runs):
+        remaining = None
+        if job.budget.max_seconds is not None:
+            remaining = job.budget.max_seconds - (time.perf_counter() - t0)
+            if remaining <= 0 and last is not None:
+                break
+        explorer, decide = explore(options)
+        explorer.shuffle(i)
+        graph = explorer.run(Budget(max_states=job.swarm_states, max_seconds=remaining,
+                                    max_memory_mb=job.budget.max_memory_mb))
+        verdicts = decide(graph)
+        total += graph.n_states
+        hashed_note(explorer, verdicts)
+        last = (explorer, graph, verdicts, i + 1)
+        if graph.complete:
+            for v in verdicts.values():
+                v.message += f" [swarm: search {i + 1} covered the whole state space]"
+            return explorer, graph, verdicts
+        if any(v.violated for v in verdicts.values()):
+            for v in verdicts.values():
+                if v.violated:
+                    v.message += (f" [swarm: found by randomized depth-first search {i + 1} of {job.swarm_runs}; "
+                                  f"a real counterexample, not the shortest]")
+            break
+    explorer, graph, verdicts, done = last
+    for p, v in verdicts.items():
+        if not v.violated:
+            verdicts[p] = Verdict(p, "incomplete",
+                                  f"no violation found by {done} randomized depth-first search"
+                                  f"{'es' if done != 1 else ''} ({total:,} states visited in all, at most "
+                                  f"{job.swarm_states:,} each): a bug-hunting result, not verified",
+                                  v.counterexample, {**v.details, "swarm_runs": done, "swarm_states": total})
+    return explorer, graph, verdicts
+
+
+def hashed_note(explorer, verdicts: dict) -> None:
+    """Under hash compaction, say what each verdict is worth: a "holds" is a bug-hunting result
+    with a bound on the probability that a state was missed, never a proof; a counterexample is
+    real once replay confirms it (a collision could join two paths that are not one)."""
+    if not getattr(explorer, "hashed", False):
+        return
+    p = explorer.omission_probability()
+    for v in verdicts.values():
+        v.details["visited"] = "hash"
+        v.details["omission_probability"] = p
+        if v.status == "holds":
+            v.message += (f" [hash compaction: not verified; the probability that a state was missed is at "
+                          f"most {p:.1e}]")
+        elif v.status == "violated":
+            v.message += " [hash compaction: replay the trace to confirm it]"
 
 
 def search_rounds(job: Job, t0: float, explorer, decide):
@@ -339,7 +408,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
         if "invariant" in props.check else None
     ground_model = None
     grounding_stopped = None
-    if job.backend in ("auto", "ground") and job.search == "bfs":
+    if job.backend in ("auto", "ground") and job.search == "bfs" and job.visited == "exact":
         deadline = t0 + job.budget.max_seconds if job.budget.max_seconds is not None else None
         try:
             ground_model = GroundModel(program, start, options, budget=job.budget, deadline=deadline)
@@ -370,7 +439,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
 
     if grounding_stopped is not None:
         # the budget ran out before the search could start: the start state, unexpanded
-        ex = Explorer(ClfSystem(program, start, options), job.search, on_progress)
+        ex = Explorer(ClfSystem(program, start, options), explorer_order(job), on_progress, job.visited)
         graph = ex.run(Budget(max_states=1))
         graph.stop_reason = grounding_stopped
         verdicts = decide(graph, lambda sid: ex.states[sid])
@@ -379,10 +448,12 @@ def _run_job(job: Job, on_progress) -> JobResult:
         graph, verdicts = search_rounds(job, t0, rounds, lambda g: decide(g, rounds.state_of))
     else:
         def explore(opts: Options):
-            ex = Explorer(ClfSystem(program, start, opts), job.search, on_progress)
+            ex = Explorer(ClfSystem(program, start, opts), explorer_order(job), on_progress, job.visited)
             return ex, lambda g: decide(g, lambda sid: ex.states[sid])
 
         _explorer, graph, verdicts = _search(job, t0, explore, options)
+        if job.visited == "hash":
+            backend += ", hash compaction"
     _mark_reduction(job, verdicts, reduction)
     mismatches = []
     for p, want in job.expect.items():

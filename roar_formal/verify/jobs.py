@@ -84,6 +84,9 @@ class Job:
     search: str = "bfs"
     canonical: bool = True
     reduction: bool = False  # partial-order reduction (general backend, every property)
+    visited: str = "exact"   # "hash": hash compaction (a bug-hunting mode; a "holds" is no proof)
+    swarm_runs: int = 8             # search = "swarm": how many randomized depth-first searches
+    swarm_states: int = 10_000      # ... and the states each may visit
     spec: Optional[Path] = None        # a ROAR spec (instead of a .clf model)
     request: Optional[str] = None      # the request the spec is run on
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
@@ -382,7 +385,7 @@ def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
     _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
-                     "canonical", "reduction", "bounds", "expect", "robot"},
+                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot"},
                  "a job file", path)
     base = path.parent
     if "spec" in d:
@@ -426,13 +429,29 @@ def load_job(path: str | Path) -> Job:
             raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
                             Pos(str(path), _line_of(path, "properties"), 1))
         load_properties((base / p).resolve(), job.props)
-    for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs"))):
+    for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs", "swarm")),
+                         ("visited", ("exact", "hash"))):
         if key in d:
             v = _typed(d, key, str, path, "a job file")
             if v not in allowed:
                 raise RoarError(f"'{key}' must be one of {', '.join(allowed)}, not '{v}'",
                                 Pos(str(path), _line_of(path, key), 1))
             setattr(job, key, v)
+    if job.visited == "hash" and job.backend == "ground":
+        raise RoarError("visited = \"hash\" is a mode of the general backend (the ground backend keeps its "
+                        "states compact and exact already): drop one of them", Pos(str(path), _line_of(path, "visited"), 1))
+    if "swarm" in d:
+        sw = _typed(d, "swarm", dict, path, "a job file")
+        _expect_keys(sw, {"runs", "max_states"}, "[swarm]", path)
+        if job.search != "swarm":
+            raise RoarError("a [swarm] table needs search = \"swarm\"", Pos(str(path), _line_of(path, "swarm"), 1))
+        for key, attr in (("runs", "swarm_runs"), ("max_states", "swarm_states")):
+            if key in sw:
+                v = sw[key]
+                if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                    raise RoarError(f"[swarm] {key} must be a whole number, at least 1, not {v!r}"[:300],
+                                    _value_pos(path, key))
+                setattr(job, attr, v)
     if "canonical" in d:
         job.canonical = _typed(d, "canonical", bool, path, "a job file")
     if "reduction" in d:
@@ -483,6 +502,12 @@ def load_job(path: str | Path) -> Job:
     if not job.props.check:
         raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
                         Pos(str(path), 1, 1))
+    if job.search == "swarm" and job.robot is not None:
+        raise RoarError("search = \"swarm\" is not available for robot-backed jobs: use bfs or dfs",
+                        Pos(str(path), _line_of(path, "search"), 1))
+    if job.visited == "hash" and job.robot is not None:
+        raise RoarError("visited = \"hash\" is not available for robot-backed jobs (their states pair a model "
+                        "state with the robot's): remove it", Pos(str(path), _line_of(path, "visited"), 1))
     return job
 
 

@@ -678,7 +678,7 @@ def test_robot_backed_jobs_decide_the_spec_properties_and_a_horizon_is_no_end(tm
     props = tmp_path / "p.toml"
     props.write_text('check = ["mission-completion", "mission-failure"]\n[temporal]\n'
                      'ends = "request R0 running leads-to request R0 finished"\n'
-                     '[invariant]\nnever = ["primitive mission starts && request R0 failed"]\n', encoding="utf-8")
+                     '[invariant]\nnever = ["primitive left starts && request R0 failed"]\n', encoding="utf-8")
     job = tmp_path / "pair.toml"
     job.write_text(f'spec = "{data / "pair.roar"}"\nrequest = "mission::done == true"\nproperties = ["{props}"]\n'
                    f'[robot]\nscenario = "{data / "pair.toml"}"\nfaults = ["blind", "spill"]\nquantise = "exact"\n'

@@ -1,0 +1,186 @@
+"""Visited states kept compact (benchmark B8): exact keys as byte strings, expanded states frozen
+without their matching indexes, and hash compaction as a bug-hunting mode. Each is checked
+against the plain search it replaces: the same graph, edge for edge."""
+
+from __future__ import annotations
+
+import pytest
+
+from roar_formal.clf.context import FrozenContext
+from roar_formal.clf.query import with_big_stack
+from roar_formal.clf.signature import ExecDirective
+from roar_formal.clf.state import canonical_key
+from roar_formal.errors import RoarError
+from roar_formal.explore.search import Budget, Explorer
+from roar_formal.explore.system import Options
+from roar_formal.roar.compile import compile_spec
+from roar_formal.roar.explore import PROGRESS_RULES, RoarSystem
+from roar_formal.roar.spec import load_spec
+from roar_formal.verify.check import run_job
+from roar_formal.verify.jobs import load_job
+
+from repo import ROOT
+
+SPECS = [
+    (ROOT / "models" / "faulty" / "mutual_make.roar", "arm::started == true"),
+    (ROOT / "models" / "faulty" / "camera_retry.roar", "camera::taken == true"),
+    (ROOT / "models" / "faulty" / "ensure_slammed.roar", "user::done == true"),
+]
+
+
+def _system(spec, request, frozen: bool = True):
+    model = compile_spec(load_spec(spec), request)
+    program = model.program()
+    d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
+    system = RoarSystem(model, program.start_context(d.start), Options(progress_rules=PROGRESS_RULES,
+                                                                       fairness="agent"))
+    if not frozen:
+        system.freeze = system.thaw = system.frozen_type = None   # the plain store: contexts as they are
+    return system
+
+
+def _graph(ex):
+    g = ex.graph
+    return [list(a) for a in (g.src, g.dst, g.label, g.group, g.progress, g.parent, g.depth)]
+
+
+@pytest.mark.parametrize("spec,request_", SPECS, ids=[s[0].stem for s in SPECS])
+def test_frozen_states_explore_exactly_as_live_ones(spec, request_):
+    def go():
+        plain = Explorer(_system(spec, request_, frozen=False))
+        plain.run(Budget(max_states=3000))
+        frozen = Explorer(_system(spec, request_))
+        frozen.run(Budget(max_states=3000))
+        return plain, frozen
+    plain, frozen = with_big_stack(go)
+    assert _graph(plain) == _graph(frozen)
+    assert plain.graph.n_states == frozen.graph.n_states > 20
+    assert isinstance(frozen.states.items[0], FrozenContext) and not isinstance(plain.states.items[0], FrozenContext)
+    system = frozen.system
+    for sid in range(0, frozen.graph.n_states, 7):   # the two searches' states are one up to renaming
+        assert canonical_key(plain.states[sid]) == canonical_key(frozen.states[sid])
+    for sid in range(0, plain.graph.n_states, 5):    # frozen and thawed: the same facts and enabled steps
+        a = plain.states[sid]
+        b = FrozenContext(a).thaw()
+        assert list(map(str, a.facts())) == list(map(str, b.facts()))
+        assert canonical_key(a) == canonical_key(b)
+        assert [(c.rule, c.consumed) for c in system.program.steps(a)] == \
+               [(c.rule, c.consumed) for c in system.program.steps(b)]
+
+
+def test_keys_are_exact_byte_strings():
+    ex = with_big_stack(lambda: Explorer(_system(*SPECS[1])))
+    with_big_stack(lambda: ex.run(Budget(max_states=500)))
+    keys = list(ex.ids)
+    assert all(isinstance(k, bytes) and len(k) % 8 == 0 for k in keys)
+    assert len(set(keys)) == len(keys) == ex.graph.n_states
+
+
+JOBS = ["mutual_make.toml", "retry_forever.toml", "camera_retry.toml", "philosophers_dl5.toml"]
+
+
+@pytest.mark.parametrize("name", JOBS)
+def test_hash_compaction_gives_the_exact_searchs_graph_and_says_what_a_verdict_is_worth(tmp_path, name):
+    exact = with_big_stack(lambda: run_job(load_job(ROOT / "checker" / name)))
+    text = (ROOT / "checker" / name).read_text(encoding="utf-8")
+    text = text.replace('"../', f'"{ROOT}/')
+    job = tmp_path / name
+    job.write_text(text.replace("[bounds]", 'visited = "hash"\nbackend = "general"\n[bounds]', 1)
+                   if "[bounds]" in text else text + '\nvisited = "hash"\nbackend = "general"\n', encoding="utf-8")
+    hashed = with_big_stack(lambda: run_job(load_job(job)))
+    assert hashed.backend == "general, hash compaction"
+    from roar_formal.testing.api import Exploration
+    doc = Exploration(hashed).as_json()
+    assert doc["backend"] == "general, hash compaction"
+    assert all(v["visited"] == "hash" and 0 <= v["omission_probability"] < 1e-9 for v in doc["verdicts"].values())
+    assert (hashed.graph.n_states, hashed.graph.n_edges) == (exact.graph.n_states, exact.graph.n_edges)
+    n = hashed.graph.n_states
+    for p, v in hashed.verdicts.items():
+        assert v.status == exact.verdicts[p].status
+        assert v.details["omission_probability"] == pytest.approx(n * (n - 1) / 2 / 2 ** 64)
+        if v.status == "holds":
+            assert "[hash compaction: not verified; the probability that a state was missed is at most" in v.message
+            assert "verified" not in exact.verdicts[p].message
+
+
+def test_hash_compaction_really_forgets_colliding_states():
+    """Two states with one hash are taken for one: with a key that collides for every state, the
+    search sees the start state only, while the exact search of the same system sees them all."""
+    system = with_big_stack(lambda: _system(*SPECS[0]))
+    system.key = lambda state: 42
+    ex = Explorer(system, visited="hash")
+    with_big_stack(lambda: ex.run(Budget(max_states=1000)))
+    assert ex.graph.n_states == 1 and ex.graph.n_edges >= 1 and ex.graph.complete
+    assert ex.omission_probability() == 0.0   # (one state: no pair to collide; the bound is about n states)
+    with pytest.raises(ValueError, match="visited must be"):
+        Explorer(system, visited="bitstate")
+
+
+@pytest.mark.parametrize("extra,message", [
+    ('visited = "hashed"\n', "'visited' must be one of exact, hash, not 'hashed'"),
+    ('visited = "hash"\nbackend = "ground"\n', 'visited = "hash" is a mode of the general backend'),
+])
+def test_bad_visited_settings_are_located(tmp_path, extra, message):
+    job = tmp_path / "j.toml"
+    job.write_text(f'model = "{ROOT}/models/philosophers/dl.clf"\nproperties = ["{ROOT}/properties/philosophers.toml"]\n'
+                   + extra, encoding="utf-8")
+    with pytest.raises(RoarError, match=message) as e:
+        load_job(job)
+    assert e.value.pos.file == str(job) and e.value.pos.line >= 3
+
+
+def _job(tmp_path, name: str, extra: str) -> "Path":
+    text = (ROOT / "checker" / name).read_text(encoding="utf-8").replace('"../', f'"{ROOT}/')
+    head, _, tail = text.partition("[bounds]")
+    job = tmp_path / name
+    job.write_text(head + extra + ("[bounds]" + tail if tail else ""), encoding="utf-8")
+    return job
+
+
+def test_a_swarm_finds_the_seeded_deadlock_with_a_real_counterexample(tmp_path):
+    """Eight philosophers (dl: each may take the left fork first): a few hundred states of a
+    randomized depth-first search find the deadlock; replay confirms the path on the model."""
+    res = with_big_stack(lambda: run_job(load_job(_job(tmp_path, "philosophers_dl8.toml",
+                                                       'search = "swarm"\n[swarm]\nruns = 4\nmax_states = 300\n'))))
+    v = res.verdicts["deadlock"]
+    assert v.status == "violated" and "[swarm: found by randomized depth-first search" in v.message
+    assert res.graph.n_states <= 300 and not res.graph.complete
+    from roar_formal.verify.check import save_counterexample
+    from roar_formal.verify.replay import replay_trace
+    trace = save_counterexample(res, "deadlock", tmp_path)
+    rep = with_big_stack(lambda: replay_trace(trace, ROOT / "models" / "philosophers" / "dl8.clf"))
+    assert rep.confirmed is True
+
+
+def test_a_swarm_that_finds_nothing_never_says_holds(tmp_path):
+    res = with_big_stack(lambda: run_job(load_job(_job(
+        tmp_path, "conflict.toml", 'search = "swarm"\nvisited = "hash"\n[swarm]\nruns = 2\nmax_states = 60\n'))))
+    assert res.verdicts["livelock"].status in ("violated", "incomplete")
+    for p in ("deadlock", "exclusive-writes"):
+        v = res.verdicts[p]
+        assert v.status == "incomplete", v.message
+        assert v.message.startswith("no violation found by 2 randomized depth-first searches (") and \
+            "not verified" in v.message
+
+
+def test_a_swarm_member_that_covers_everything_gives_the_complete_verdicts(tmp_path):
+    exact = with_big_stack(lambda: run_job(load_job(ROOT / "checker" / "mutual_make_fixed.toml")))
+    res = with_big_stack(lambda: run_job(load_job(_job(tmp_path, "mutual_make_fixed.toml",
+                                                       'search = "swarm"\n[swarm]\nruns = 3\n'))))
+    assert res.graph.complete and res.graph.n_states == exact.graph.n_states
+    assert {p: v.status for p, v in res.verdicts.items()} == {p: v.status for p, v in exact.verdicts.items()}
+    assert all("covered the whole state space" in v.message for v in res.verdicts.values())
+
+
+@pytest.mark.parametrize("extra,message", [
+    ('[swarm]\nruns = 3\n', 'a [swarm] table needs search = "swarm"'),
+    ('search = "swarm"\n[swarm]\nruns = 0\n', "[swarm] runs must be a whole number, at least 1, not 0"),
+    ('search = "swarm"\n[swarm]\nmax_state = 5\n', "max_state"),
+])
+def test_bad_swarm_settings_are_located(tmp_path, extra, message):
+    job = tmp_path / "j.toml"
+    job.write_text(f'model = "{ROOT}/models/philosophers/dl.clf"\nproperties = ["{ROOT}/properties/philosophers.toml"]\n'
+                   + extra, encoding="utf-8")
+    with pytest.raises(RoarError) as e:
+        load_job(job)
+    assert message in e.value.message and e.value.pos.file == str(job)
