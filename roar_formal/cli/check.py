@@ -191,7 +191,7 @@ def register(app: typer.Typer) -> None:
                 raise RoarError(f"--dot {dot}: the trace holds no task-tree message (no request, no primitive "
                                 "call): a task tree is drawn from a trace of a ROAR spec")
         console = make_console()
-        rep = replay(trace, model, functional=functional, force=force)
+        rep = replay(trace, model, functional=functional, force=force, _from_cli=True)
         if interactive:
             for note in rep.notes:
                 console.print(f"note: {note}", style="yellow")

@@ -998,17 +998,18 @@ class ClfRun:
 
 
 def replay(trace: PathLike, model: Optional[PathLike] = None, *, functional: Optional[PathLike] = None,
-           force: bool = False) -> "Replay":
+           force: bool = False, _from_cli: bool = False) -> "Replay":
     """Replay a trace (a counterexample from :meth:`Exploration.save_counterexamples` or
     ``check``, or a run's trace) step by step on ``model`` (a spec or a ``.clf`` program: the
     trace's own is never opened), as ``roar-verify replay`` does. A step the model cannot take, or a
     trace of another version of the spec (unless ``force``), is a :class:`RoarError`."""
     from ..clf.query import with_big_stack
     from ..verify.replay import replay_trace
-    if model is None:
-        raise RoarError(f"{trace}: replay(trace, model) needs the model to replay on (a ROAR spec, whose "
-                        f"functional-layer module next to it is used, or a .clf file): a trace is data, and the "
-                        f"files it names are never opened")
+    if model is None and not _from_cli:
+        from ..trace.format import read_trace
+        from ..verify.replay import need_model
+        raise need_model(trace, read_trace(trace)[0], "name it: replay(trace, model), with a ROAR spec (whose "
+                         "functional-layer module next to it is used) or a .clf file")
     rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
     return Replay(Path(trace), rep)
 

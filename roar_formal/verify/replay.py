@@ -29,10 +29,16 @@ from ..roar.sources import spec_fingerprint
 from ..trace.fingerprint import check_fingerprint, clf_fingerprint, shown
 from ..trace.format import read_trace
 
-__all__ = ["ReplayResult", "TraceReplay", "load_replay_model", "load_replay_target", "replay", "replay_trace"]
+__all__ = ["ReplayResult", "TraceReplay", "load_replay_model", "load_replay_target", "need_model", "replay",
+           "replay_trace"]
 
 
-def _need_model(path, header: dict) -> RoarError:
+CLI_MODEL = ("pass --model SPEC (the ROAR spec, whose functional-layer module next to it is used) "
+             "or --model FILE.clf")
+
+
+def need_model(path, header: dict, how: str = CLI_MODEL) -> RoarError:
+    """A replay without a model: the error, with ``how`` to name one (the command line's or the API's way)."""
     named = header.get("spec") or header.get("model")
     kind = "spec" if header.get("spec") else "model"
     notes = ["a trace is data: replay never opens, imports or runs the files a trace names "
@@ -41,9 +47,8 @@ def _need_model(path, header: dict) -> RoarError:
         notes.append(f"this trace was recorded on the {kind} {shown(named)}"
                      + (f" with the functional-layer module {shown(header['functional'])}"
                         if header.get("functional") else ""))
-    return RoarError(f"{path}: replay needs the model on the command line: pass --model SPEC "
-                     "(the ROAR spec, whose functional-layer module next to it is used) or --model FILE.clf",
-                     None, notes)
+    where = "on the command line" if how == CLI_MODEL else "to replay on"
+    return RoarError(f"{path}: replay needs the model {where}: {how}", None, notes)
 
 
 def load_replay_target(path, header: dict, model, functional=None, force: bool = False,
@@ -54,7 +59,7 @@ def load_replay_target(path, header: dict, model, functional=None, force: bool =
     functional-layer module is imported."""
     notes = notes if notes is not None else []
     if model is None:
-        raise _need_model(path, header)
+        raise need_model(path, header)
     model = Path(model)
     if model.suffix == ".clf":
         if not model.is_file():

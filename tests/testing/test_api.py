@@ -125,7 +125,7 @@ def test_a_counterexample_prints_exactly_as_roar_verify_check(models, root, run_
     assert start != end
     with pytest.raises(IndexError, match="this replay has states 0 .the start. to 27"):
         rep.state(28)
-    with pytest.raises(RoarError, match=r"replay\(trace, model\) needs the model"):
+    with pytest.raises(RoarError, match=r"replay needs the model to replay on: name it: replay\(trace, model\)"):
         roar_formal.replay(path)
 
 
