@@ -79,11 +79,16 @@ class MemoryWatch:
         return False
 
 
+#: at most this many frontier states are kept live (the others frozen until they are expanded)
+LIVE_FRONTIER = 2048
+
+
 class StateStore:
     """The visited states by id. A system with ``freeze``/``thaw`` (a CLF context without its
     matching indexes) has its expanded states kept frozen, a few hundred bytes each, and thawed
     when read again: the few read most recently stay thawed (properties read them in order).
-    States waiting in the frontier stay as they are (a successor shares its parent's indexes)."""
+    States waiting in a short frontier stay as they are (a successor shares its parent's indexes);
+    past ``LIVE_FRONTIER`` waiting states, new ones are frozen too."""
 
     def __init__(self, system, keep: int = 8):
         self.freeze = getattr(system, "freeze", None)
@@ -97,8 +102,9 @@ class StateStore:
         self.items.append(state)
 
     def done(self, i: int) -> None:
-        """State ``i`` is expanded: from now on it is only read back, so keep it frozen."""
-        if self.freeze is not None:
+        """State ``i`` is expanded (from now on it is only read back), or waits in a frontier so
+        long that keeping it live costs more memory than thawing it later costs time: keep it frozen."""
+        if self.freeze is not None and not isinstance(self.items[i], self.frozen):
             self.items[i] = self.freeze(self.items[i])
             self.recent.pop(i, None)
 
@@ -220,6 +226,8 @@ class Explorer:
                 if new:
                     self._add(succ.state, s, e, depth)
                     self.frontier.append(t)
+                    if len(self.frontier) > LIVE_FRONTIER:
+                        self.states.done(t)
             g.expanded[s] = 1
             self.states.done(s)
             if self.on_progress is not None and now - last_report > 0.25:

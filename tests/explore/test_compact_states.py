@@ -68,6 +68,19 @@ def test_frozen_states_explore_exactly_as_live_ones(spec, request_):
                [(c.rule, c.consumed) for c in system.program.steps(b)]
 
 
+def test_a_long_frontier_is_frozen_too_and_the_graph_does_not_change(monkeypatch):
+    import roar_formal.explore.search as search
+    spec, request_ = SPECS[2]
+    plain = Explorer(with_big_stack(lambda: _system(spec, request_, frozen=False)))
+    with_big_stack(lambda: plain.run(Budget(max_states=1500)))
+    monkeypatch.setattr(search, "LIVE_FRONTIER", 3)
+    short = Explorer(with_big_stack(lambda: _system(spec, request_)))
+    with_big_stack(lambda: short.run(Budget(max_states=1500)))
+    assert _graph(plain) == _graph(short)
+    waiting = list(short.frontier)
+    assert len(waiting) > 3 and sum(isinstance(short.states.items[i], FrozenContext) for i in waiting) >= len(waiting) - 3
+
+
 def test_keys_are_exact_byte_strings():
     ex = with_big_stack(lambda: Explorer(_system(*SPECS[1])))
     with_big_stack(lambda: ex.run(Budget(max_states=500)))
