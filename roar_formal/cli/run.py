@@ -23,6 +23,11 @@ def register(app: typer.Typer) -> None:
         fault: list[str] = typer.Option([], "--fault",
                                         help="Make a primitive fail: NAME (every call), NAME:K (its K-th call) "
                                              "or NAME=OUTCOME (a declared outcome). Repeatable."),
+        crash: list[str] = typer.Option([], "--crash",
+                                        help="Make an agent crash: AGENT@STEP (at that step of the run, or the first "
+                                             "one after it at which the agent handles a request; it comes back as "
+                                             "soon as it can) or AGENT@STEP-BACK (it comes back at step BACK). "
+                                             "Its pending constraints fail with an availability entry. Repeatable."),
         functional: Optional[Path] = typer.Option(None, "--functional",
                                                   help="Functional-layer module (default: SPEC.py next to the spec)."),
         max_steps: int = typer.Option(100_000, "--max-steps", help="Stop after this many CLF steps."),
@@ -40,7 +45,9 @@ def register(app: typer.Typer) -> None:
         Exit status: 0 when the request succeeds, 1 when it fails or does not finish, 2 on bad input.
         """
         from ..testing.api import load_spec, parse_faults
+        from ..roar.run import parse_crash
         faults = parse_faults(fault)
+        crashes = [parse_crash(c) for c in crash]
         spec_obj = load_spec(spec, functional=functional)
         if png is not None or svg is not None or dot is not None:
             from ..roar.sources import spec_files
@@ -48,9 +55,10 @@ def register(app: typer.Typer) -> None:
             for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
                 if path is not None:
                     check_output_file(path, option, [Path(f) for f in spec_files(spec_obj.ast)] + [Path(spec)])
-        spec_obj.compile(request, "python")   # a bad request is reported before anything is printed
+        spec_obj.compile(request, "python", crashes=crashes or None)   # a bad request is reported before anything is printed
         console = make_console()
-        report = spec_obj.run(request, seed=seed, faults=faults, max_steps=max_steps, fair=fair, strict_faults=True)
+        report = spec_obj.run(request, seed=seed, faults=faults, max_steps=max_steps, fair=fair, strict_faults=True,
+                              crashes=crashes)
         if not as_json:
             show(console, report.header_lines())
             show(console, report.event_lines(verbose))   # the one step table of run, simulate and replay

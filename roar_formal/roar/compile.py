@@ -45,7 +45,7 @@ from .functional import DEFAULT_OUTCOMES, BindingError, Outcome, Registry
 from .incompatible import incompatible_tasks
 from .pretty import format_expr, format_stmt
 
-__all__ = ["compile_spec", "CompiledModel", "Site"]
+__all__ = ["compile_spec", "CompiledModel", "Site", "Crashes", "CRASH_RULES"]
 
 _OPS = {"==": "o_eq", "!=": "o_ne", "<": "o_lt", "<=": "o_le", ">": "o_gt", ">=": "o_ge",
         "+": "o_add", "-": "o_sub", "*": "o_mul", "&&": "o_and", "||": "o_or"}
@@ -71,6 +71,109 @@ def num_lit(x) -> str:
 def str_lit(s: str) -> str:
     """A string as a CLF literal: the engine's own printing, which its lexer reads back."""
     return format_string(s)
+
+
+#: the crash rules (CRASH_RULES_TEXT) the scheduler of a run never chooses: the runner takes them
+#: at the steps ``--crash`` names (docs/semantics.md, "Crashes")
+CRASH_RULES = frozenset({"crash", "back", "back_armed"})
+
+
+#: the forward rules of crashes, added only to a spec compiled with them (the declarations and
+#: backward clauses they use are in framework.clf, section "faults"): a model without faults has
+#: not one more rule, so its committed-choice runs draw the same schedule as before
+CRASH_RULES_TEXT = """
+% the agent goes down (its own fairness group; only an armed agent: see the crash plan), while
+% it handles a request: down and idle, it would differ from up in nothing a step could show
+% before a request reached it, and a crash then is the crash with that request just sent
+crash : carmed A -o cleft (s N) -o cep A T -o !ep_next T T1 -o rq R A C J K -o hs R Ph EC F Pl W
+         -o {cleft N * cep A T1 * rq R A C J K * hs R Ph EC F Pl W}.
+% it comes back once nothing is committed in its mask any more (the dead requests released their
+% tasks), with its variables as they were; `back_armed` may crash again while crashes are left
+back : cep A T -o !ep_next T T1 -o !ep_up T1 -o mask A vnil -o {cep A T1 * mask A vnil}.
+back_armed : cep A T -o !ep_next T T1 -o !ep_up T1 -o mask A vnil -o cleft (s N)
+              -o {cep A T1 * mask A vnil * cleft (s N) * carmed A}.
+
+% a dead request fails, its tasks released; an activation serving it first stops (below)
+unavailable : hs R Ph EC F Pl _ -o !unav_idle Ph -o rq R A C J K -o cep A E -o !ep_dead F E -o rs R _
+               -o mask A M -o !mrm M Pl M1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1}.
+unavailable_write : hs R (h_write _) EC F Pl _ -o wrq R _ -o rq R A C J K -o cep A E -o !ep_dead F E -o rs R _
+               -o mask A M -o !mrm M Pl M1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1}.
+unavailable_run : hs R (h_run _ _ _) EC F Pl _ -o rdone R _ k_crash -o rq R A C J K -o cep A E -o !ep_dead F E
+               -o rs R _ -o mask A M -o !mrm M Pl M1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1}.
+unavailable_check : hs R (h_rchk _ _ _ _ _) EC F Pl _ -o chk I R _ _ -o ctl I m_run _ _ -o rstat I _
+               -o rq R A C J K -o cep A E -o !ep_dead F E -o rs R _ -o mask A M -o !mrm M Pl M1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1}.
+unavailable_check_call : hs R (h_rchk _ _ _ _ _) EC F Pl _ -o chk I R _ _ -o ctl I (m_call D _) _ _ -o rstat I _
+               -o rq R A C J K -o cep A E -o !ep_dead F E -o rs R _ -o mask A M -o !mrm M Pl M1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1 * orphan D}.
+
+% an activation killed earlier and still running its end block, paused by its emitter, whose request
+% is then aborted (its emitter released) takes the abort's kill as a repeat (kill_again) and would
+% wait for a continue that no one is left to send: the release lifts the emitter's pause. Crashes
+% make this reachable (a constraint fails at any moment); docs/semantics.md, Known gaps
+released_unpause : rq R A C irel K -o ending I Kn -o act I R T Rc N -o rstat I (pz M tt) -o !parent_cont (pz M tt) Z
+                    -o {rq R A C irel K * ending I Kn * act I R T Rc N * rstat I Z}.
+
+% an activation serving a dead request stops: a crashed agent runs nothing, not even the end block;
+% the requests it holds are aborted as at a recipe's end (cleanup_abort), then it ends with k_crash
+% (recipe_end_failed), which fails its request (unavailable_run) or completes its abort (aborted)
+crash_stop_run : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o alive I -o ctl I m_run _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go}.
+crash_stop_call : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o alive I -o ctl I (m_call D _) _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go * orphan D}.
+crash_stop_make : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o alive I -o ctl I (m_make _) _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go}.
+crash_stop_block : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o alive I -o ctl I (m_block _) _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go}.
+crash_stop_end : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o ending I Kn -o !not_crash Kn -o ctl I m_run _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go}.
+crash_stop_end_call : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o ending I Kn -o !not_crash Kn -o ctl I (m_call D _) _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go * orphan D}.
+crash_stop_end_make : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o ending I Kn -o !not_crash Kn -o ctl I (m_make _) _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go}.
+crash_stop_end_block : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o ending I Kn -o !not_crash Kn -o ctl I (m_block _) _ L -o rstat I _
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go}.
+"""
+
+
+@dataclass(frozen=True)
+class Crashes:
+    """Agents that may crash and come back (docs/semantics.md, "Crashes"): opt-in, per job
+    (``[faults] crash``) or per run (``--crash``). With no agents the model is the one compiled
+    without faults, to the byte.
+
+    ``bound`` is the number of crashes in a run, all agents together. In exploration
+    (``scheduled`` false) a crash plan decided at the start says which agents may crash; in a run
+    (``scheduled`` true) every listed agent is armed from the start, and the runner fires each
+    crash (and comeback) at the step it was given. ``where`` holds, per agent, the position of its
+    name in the job file (for errors), or None."""
+
+    agents: tuple = ()
+    bound: int = 1
+    scheduled: bool = False
+    where: tuple = ()
+
+    def __bool__(self) -> bool:
+        return bool(self.agents)
 
 
 @dataclass
@@ -120,6 +223,9 @@ class CompiledModel:
     hypotheses: dict[str, list] = field(default_factory=dict)    # cst -> (agent, task, hypothesis) candidates under a hypothesis
     unused_rules: list[str] = field(default_factory=list)
     fair_outcomes: dict[str, str] = field(default_factory=dict)   # outcome rule -> its fairness group (fair=True)   # agent::rule the logic layer cannot use (they call functions)
+    # (with crashes, also the crash and comeback rules -> their own groups: neither is a step of an agent)
+    crashes: Optional[Crashes] = None   # the agents that may crash (None: no faults)
+    epochs: dict[str, int] = field(default_factory=dict)          # epoch sentinel task -> crashes so far
 
     def program(self):
         """The CLF program (cached)."""
@@ -176,8 +282,13 @@ class _Ctx:
 
 
 class _Compiler:
-    def __init__(self, checked: CheckedSpec, registry: Optional[Registry], functional: str):
+    def __init__(self, checked: CheckedSpec, registry: Optional[Registry], functional: str,
+                 crashes: Optional[Crashes] = None):
         spec = checked.spec
+        self.crashes = crashes if crashes else None
+        self.crash_agents: set[str] = set(crashes.agents) if crashes else set()
+        self.checker_sites: set[str] = set()      # calls hoisted in a recipe's pre-condition check
+        self.guards: dict[str, tuple[str, str]] = {}   # compiled rule -> (agent, how its request is found)
         self.spec = spec
         self.checked = checked   # the types the static checks found (the compiler re-checks nothing)
         self.registry = registry
@@ -291,11 +402,12 @@ class _Compiler:
         tc = self.task_c(owner.name, task)
         run_c = self.task_run_cst(owner, task)
         s = self.site("run-task", cx.agent, cx.task, cx.recipe, pos, f"read {owner.name}::{var} (runs {task})")
+        stamp_p, stamp_o, failed = self.stamp(owner.name)
         self.rules.append(
-            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go -o act I R0 T0 Rc0 N\n"
+            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go -o act I R0 T0 Rc0 N{stamp_p}\n"
             f"  -o {{Exists r. ctl I (m_make r) C E * rstat I go * act I R0 T0 Rc0 (s N) * owns I r ff\n"
             f"      * rq r a_{owner.name} {run_c} I (k_task {tc}) * rs r s_pending * ppz r ff\n"
-            f"      * hs r (h_tasks (vcons (vtsk {tc}) vnil)) vnil vnil vnil vnone}}.")
+            f"      * hs r (h_tasks (vcons (vtsk {tc}) vnil)) vnil {failed} vnil vnone{stamp_o}}}.")
         cx.hoisted.append(s)
 
     def hoist_call(self, e: a.Call, cx: _Ctx) -> None:
@@ -318,6 +430,8 @@ class _Compiler:
         self.model.fn_params[fc] = list(self.checked.fn_sigs.get((owner, e.name), (None, []))[1] or [])
         self.pending_fns[fc] = (owner, e.name, result_ty)
         s = self.site("call", cx.agent, cx.task, cx.recipe, e.pos, format_expr(e), function=e.qualified)
+        if not cx.run_tasks:   # a call of a recipe's pre-condition: a checker activation makes it
+            self.checker_sites.add(s)
         self.model.call_sites.setdefault(fc, []).append(e.pos)
         prem, outs = self.premises(sub)
         vals = [f"A{i + 1}" for i in range(len(args))]
@@ -613,8 +727,11 @@ class _Compiler:
         if kind == "ensure":
             self.ensured.add(cst)
         pairs = self._list([f"(vpair (vcell {c}) {w})" for c, w in zip(cells, names)])
+        stamp_p, stamp_o, failed = self.stamp(target)
+        evals += stamp_p
+        outs += stamp_o
         req = (f"rq r a_{target} {cst} I k_{kind} * rs r s_sent * ppz r ff * owns I r ff"
-               f" * hs r h_select vnil vnil vnil (vsome {pairs})")
+               f" * hs r h_select vnil {failed} vnil (vsome {pairs})")
         if kind == "make":
             ctl = "ctl I (m_make r) C E"
         else:
@@ -696,6 +813,7 @@ class _Compiler:
         prem, outs = self.premises(cx)
         head = f"cres R Rk -o rq Rk Ak {c} Ik Kk -o act Ik Rk1 Tk {rc} N -o alive Ik{prem}"
         keep = f"rq Rk Ak {c} Ik Kk * act Ik Rk1 Tk {rc} N * alive Ik{outs}"
+        self.guards[f"ask_alternative_{rc}_{c}"] = self.guards[f"ask_caller_{rc}_{c}"] = (ag.name, "ask")
         self.rules.append(f"ask_alternative_{rc}_{c} : {head}\n  -o !peval vnil vnil vnil {cond} (vbool tt)\n"
                           f"  -o {{{keep} * kill Ik (k_switch {c})}}.")
         self.rules.append(f"ask_caller_{rc}_{c} : {head}\n  -o !peval vnil vnil vnil {cond} (vbool ff)\n"
@@ -792,6 +910,9 @@ class _Compiler:
         self.key_hypotheses()
         for c in sorted(self.cst_pexp):
             self.constraint_rules(c)
+        if self.crashes:
+            o.extend(self.crash_declarations(sum(len(ag.tasks) for ag in spec.agents)))
+        self.guard_crashed()
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
         o.extend("st" + r[2:] if r.startswith("pp") else r for r in self.rules)
         # functions and outcomes
@@ -805,8 +926,15 @@ class _Compiler:
             for v in ag.vars:
                 c = self.cell(ag.name, v.name)
                 init.append(f"contains {c} {self.initial(ag, v)}")
-        init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * rs r0 s_sent * ppz r0 ff"
-                    f" * hs r0 h_select vnil vnil vnil (vsome {self._list([f'(vpair (vcell {c}) {v})' for c, v in zip(cells, wvals)])})")
+        failed, sent = "vnil", "rs r0 s_sent"
+        if self.crashes:
+            init.extend(self.crash_init())
+            if top.name in self.crash_agents:   # sent in epoch 0
+                failed = "(vcons (vtsk t_ep0) vnil)"
+            if not self.crashes.scheduled:       # the crash plan is decided first (crash_plan_...)
+                sent = "cgate z r0"
+        init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * {sent} * ppz r0 ff"
+                    f" * hs r0 h_select vnil {failed} vnil (vsome {self._list([f'(vpair (vcell {c}) {v})' for c, v in zip(cells, wvals)])})")
         m.init = "Exists r0. " + " * ".join(init)
         o.append(f"\n#exec * {m.init}.")
         body = "\n".join(o) + "\n"
@@ -817,6 +945,95 @@ class _Compiler:
         m.text = framework_text() + m.spec_text
         m._program = Program(extend_signature(sig, cands, "<compiled model>"))
         return m
+
+    # ------------------------------------------------------------ crashes (opt-in)
+    def stamp(self, target: str) -> tuple[str, str, str]:
+        """A request sent to ``target`` carries the target's epoch as the last entry of its
+        failed-task list (no plan uses the sentinel task): (premise, output, failed-task list)."""
+        if target not in self.crash_agents:
+            return "", "", "vnil"
+        v = f"Cep_{target}"
+        return f" -o cep a_{target} {v}", f" * cep a_{target} {v}", f"(vcons (vtsk {v}) vnil)"
+
+    def crash_declarations(self, ids: int) -> list[str]:
+        """The epoch sentinels of the agents that may crash (up in even epochs, down in odd
+        ones), their tables, and the crash plan decided at the start (exploration)."""
+        cr = self.crashes
+        top = 2 * cr.bound
+        out = ["\n% crashes (opt-in): the rules, epochs, the crash plan (docs/semantics.md, Crashes)",
+               CRASH_RULES_TEXT.strip()]
+        for k in range(top + 1):
+            self.model.epochs[f"t_ep{k}"] = k
+            out.append(f"t_ep{k} : task.")
+            out.append(f"id_t_ep{k} : task_id t_ep{k} {ids + 1 + k}.")
+        out += [f"epu_{k} : ep_up t_ep{k}." for k in range(0, top + 1, 2)]
+        out += [f"epn_{k} : ep_next t_ep{k} t_ep{k + 1}." for k in range(top)]
+        out += [f"eps_{f}_{c} : ep_stale t_ep{f} t_ep{c}." for c in range(top + 1) for f in range(c + 1)
+                if f < c or c % 2 == 1]
+        if not cr.scheduled:
+            # which agents may crash is decided before anything else happens, each once: an
+            # armed agent's crash is then a step of its own fairness group (weak fairness makes
+            # it happen), and a run in which it never crashes is the run of the other branch
+            n = len(cr.agents)
+            for i, ag in enumerate(cr.agents):
+                nxt = "rs R s_sent" if i == n - 1 else f"cgate {nat(i + 1)} R"
+                out.append(f"may_crash_a_{ag} : cgate {nat(i)} R -o {{carmed a_{ag} * {nxt}}}.")
+                out.append(f"never_crash_a_{ag} : cgate {nat(i)} R -o {{{nxt}}}.")
+        # neither a crash nor a comeback is a step of the agent itself
+        self.model.fair_outcomes.update({"crash": "crash", "back": "coming back", "back_armed": "coming back"})
+        return out
+
+    def crash_init(self) -> list[str]:
+        cr = self.crashes
+        init = [f"cleft {nat(cr.bound)}"] + [f"cep a_{ag} t_ep0" for ag in cr.agents]
+        if cr.scheduled:
+            init += [f"carmed a_{ag}" for ag in cr.agents]
+        return init
+
+    def guard_crashed(self) -> None:
+        """With crashes, every compiled rule of an agent that may crash needs the request it
+        serves to be of the agent's current epoch, with the agent up (``ep_cur``): a crashed agent
+        decides, checks and runs nothing, and what it was doing stays stopped after it comes back
+        (the framework's ``crash_stop_*`` and ``unavailable*`` rules clean it up)."""
+        if not self.crash_agents:
+            return
+        by_num = {re.match(r"pp(\d+)_", c).group(1): site for c, site in self.model.sites.items()}
+        for i, rule in enumerate(self.rules):
+            name = rule.split(" : ", 1)[0]
+            m = re.match(r"pp(\d+)_", name)
+            if m:
+                site = by_num[m.group(1)]
+                agent = site.agent
+                how = "chk" if site.kind == "pre" else "chkcall" if site.const in self.checker_sites else "act"
+            elif name in self.guards:
+                agent, how = self.guards[name]
+            else:
+                continue
+            if agent not in self.crash_agents:
+                continue
+            v = f"Cep_{agent}"
+            prem, outs = [], []
+            if how in ("hs", "chk"):       # the rule reads the request's handler (failed tasks F)
+                fl = "F"
+            elif how == "ask":             # the activation Ik of the calling context, of request Rk1
+                prem.append("hs Rk1 Phg ECg Fg Plg Wg")
+                fl = "Fg"
+            elif how == "chkcall":
+                prem += ["chk I Rg Rcg Ng", "hs Rg Phg ECg Fg Plg Wg"]
+                fl = "Fg"
+            else:                          # a recipe activation: its request's handler
+                if "act I R0 T0 Rc0 " not in rule:
+                    prem.append("act I R0 T0 Rc0 Ng")
+                prem.append("hs R0 Phg ECg Fg Plg Wg")
+                fl = "Fg"
+            outs = list(prem)
+            if f"cep a_{agent} {v}" not in rule:
+                prem.append(f"cep a_{agent} {v}")
+                outs.append(f"cep a_{agent} {v}")
+            prem.append(f"!ep_cur {fl} {v}")
+            k, j = rule.rindex("-o {"), rule.rindex("}.")
+            self.rules[i] = (rule[:k] + "".join(f"-o {p} " for p in prem) + "\n  " + rule[k:j]
+                             + "".join(f" * {x}" for x in outs) + rule[j:])
 
     def const_value(self, e: a.Expr) -> str:
         if isinstance(e, a.IntLit):
@@ -865,6 +1082,8 @@ class _Compiler:
                 cells.append(w)
         vars_ = {cell: f"V{i + 1}" for i, cell in enumerate(cells)}
         wvars = {cell: f"W{i + 1}" for i, cell in enumerate(where)}
+        for prefix in ("select_", "reselect_", "final_", "ensure_broken_", "ensure_broken_top_"):
+            self.guards[prefix + c] = (tag.name, "hs")
         pred_p = self.cst_pexp[c]
         rq = f"rq R a_{tag.name} {c} J K"
 
@@ -877,14 +1096,17 @@ class _Compiler:
         newv = dict(vars_)
         newv.update(wvars)
         wl = self._list([f"(vpair (vcell {w}) {wvars[w]})" for w in where])
+        # with crashes, the decision records the tree it commits as the handler's plan at once (an
+        # abort that came before tasks_chosen would leave it in the mask: framework, `committed`)
+        plan, pl = (" -o !committed D Pl1", "Pl1") if self.crashes else ("", "Pl")
         self.rules.append(
             f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D -o !commit D R M M1\n"
-            f"  -o {{hs R (h_dec D) EC F Pl (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
+            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D -o !commit D R M M1{plan}\n"
+            f"  -o {{hs R (h_dec D) EC F {pl} (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D -o !commit D R M M1\n"
-            f"  -o {{hs R (h_dec D) EC F Pl vnone * {rq} * mask a_{tag.name} M1{back}}}.")
+            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D -o !commit D R M M1{plan}\n"
+            f"  -o {{hs R (h_dec D) EC F {pl} vnone * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
             f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"
@@ -1098,7 +1320,7 @@ class _Compiler:
 
 
 def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[Registry] = None,
-                 functional: str = "abstract") -> CompiledModel:
+                 functional: str = "abstract", crashes: Optional[Crashes] = None) -> CompiledModel:
     """Compile ``spec`` (as :func:`~roar_formal.roar.spec.load_spec` loaded it, or checked) with
     ``request`` (text or Constraint) to CLF.
 
@@ -1116,4 +1338,28 @@ def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[R
     req, typed = typed_request(checked, request)
     if req.target() is None:
         raise RoarError("the request must name exactly one agent", req.pos)
-    return _Compiler(checked.with_types(typed), registry, functional).compile(req)
+    check_crashes(checked.spec, crashes)
+    model = _Compiler(checked.with_types(typed), registry, functional, crashes).compile(req)
+    model.crashes = crashes if crashes else None
+    return model
+
+
+def check_crashes(spec: a.Spec, crashes: Optional[Crashes]) -> None:
+    """Every agent a crash names is an agent of the spec (located at its name in the job file
+    when it came from one), named once; the bound is a whole number from 1."""
+    if not crashes:
+        return
+    known = [ag.name for ag in spec.agents]
+    where = list(crashes.where) + [None] * (len(crashes.agents) - len(crashes.where))
+    what = "--crash" if crashes.scheduled else "[faults] crash" if any(where) else "crash"
+    seen: set = set()
+    for name, pos in zip(crashes.agents, where):
+        if name not in known:
+            raise RoarError(f"{what}: unknown agent {name!r}; the spec's agents: {', '.join(known)}", pos)
+        if name in seen and not crashes.scheduled:
+            raise RoarError(f"{what}: agent {name!r} named twice", pos)
+        seen.add(name)
+    b = crashes.bound
+    if isinstance(b, bool) or not isinstance(b, int) or b < 1:
+        raise RoarError(f"{what}: the number of crashes in a run must be a whole number from 1, not {b!r}",
+                        next((p for p in where if p is not None), None))

@@ -8,11 +8,18 @@ so the search branches on every outcome). On top of it this module gives:
 * the progress events of livelock: a request reaching a final state;
 * the final states of deadlock: every request final and no recipe left (DESIGN.md:
   quiescent with a request not final, or a recipe blocked, is a deadlock);
-* a monitor for sequential achievement (TCA): for a pair ``make A; make B`` of
-  one recipe, a command (a primitive call) in B's subtree must not start before
-  every command in A's subtree has ended. The monitor keeps, as facts of the
-  state (so states stay canonical), the subtree each request and running
-  command belongs to and whether a command of B's subtree has started;
+* a monitor for sequential achievement (TCA): for two sequential sub-goals A and
+  B, a command (a primitive call) in B's subtree must not start before every
+  command in A's subtree has ended. The sub-goals are any two constraint-sending
+  statements (``make`` or ``ensure``) of one block of a recipe, in order (every
+  ordered pair, per activation), and consecutive tasks of a plan the logic layer
+  chose for a request (``d_plan [T1, ..., Tk, main]``: T_i before T_i+1, per
+  decision). Optionally (``kept``) an achieved statement's predicate must still
+  hold when each later statement of its block is achieved and when the recipe
+  ends. The monitor keeps, as facts of the state (so states stay canonical), the
+  subtrees each request and running command belongs to, whether a command of a
+  second subtree started while its first one was still live, the plans, and the
+  statements achieved;
 * the invariant ``exclusive-writes``: no controllable variable is written by the
   where clauses of two live accepted constraints;
 * ROAR-level events for a counterexample path (the same narrator as runs).
@@ -26,10 +33,12 @@ from typing import Optional
 
 from ..clf.context import Context
 from ..clf.rules import LIN
-from ..clf.terms import Const, Root, const
+from ..clf.terms import Const, Param, Root, const, param_term
+from ..errors import RoarError
 from ..explore.system import ClfSystem, Options, Successor
 from .compile import CompiledModel
 from . import vocabulary as V
+from .run import list_items
 
 #: rules whose step brings a request to a final state (the default progress events)
 PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_again", "written_holds_again_top",
@@ -38,8 +47,18 @@ PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_aga
                   "conflict_failed", "aborted", "aborted_idle")
 FINAL_STATES = ("s_success", "s_failure")
 
+#: the sequential-achievement monitor's own facts besides mon_in / mon_cmd / mon_b (never
+#: framework families): ``mon_plan P R C Ts Cur`` a plan instance P (a fresh name) of request R of
+#: constraint C with tasks Ts (Cur: tt while it is R's current plan), ``mon_got S I`` the request
+#: activation I sent at site S was achieved, ``mon_undone A B`` (only in the state right after the
+#: step) B was achieved, or the recipe ended (B = ``mtag_end``), while A's predicate was false
+MON_PLAN, MON_GOT, MON_UNDONE = "mon_plan", "mon_got", "mon_undone"
+#: subtree tags (the second argument of mon_in / mon_cmd, the argument of mon_b): ``mtag_site S I``
+#: the request activation I sent at site S and its subtree; ``mtag_task P T`` task T of plan P
+TAG_SITE, TAG_TASK, TAG_END = "mtag_site", "mtag_task", "mtag_end"
 #: what the sequential-achievement monitor is updated from or reads (reduction: visible families)
-MONITOR_FAMILIES = frozenset({"rq", "pending", "return", "callfail", "act", "chk", "mon_in", "mon_cmd", "mon_b"})
+MONITOR_FAMILIES = frozenset({"rq", "pending", "return", "callfail", "act", "chk", "mon_in", "mon_cmd", "mon_b",
+                              "hs", "rs", "contains", MON_PLAN, MON_GOT, MON_UNDONE})
 #: what the exclusive-writes invariant reads
 EXCLUSIVE_WRITES_FAMILIES = frozenset({"rq", "hs"})
 
@@ -65,28 +84,147 @@ def roar_final(ctx: Context) -> bool:
 
 @dataclass(frozen=True)
 class Pair:
-    """``make A; make B`` in one recipe: the sites of the two makes."""
+    """Two sequential sub-goals A and B (docs/checking.md, sequential achievement).
+
+    ``kind``:
+
+    * ``seq``: two constraint-sending statements of one block of a recipe, A before B, where A
+      is a ``make``, or an ``ensure`` whose handle is aborted between them: no command of B's
+      subtree starts before every command of A's subtree has ended. ``a`` and ``b`` are the
+      statements' sites;
+    * ``kept``: A is an ``ensure`` still in force when B is sent (it protects B rather than
+      precedes it): only its ``kept`` check (``a`` is ``kept:SITE``, so that a trace's TCA
+      reading declares nothing for it);
+    * ``plan``: the tasks a decision of agent AGENT plans for a request (``a`` = ``b`` =
+      ``plan:AGENT``): consecutive planned tasks are sequential sub-goals. A violation names
+      the two tasks with a pair of this kind.
+
+    ``kept`` (``seq`` and ``kept`` pairs): once A is achieved (its request succeeds; for an
+    ensure, is held), A's predicate ``a_pred`` still holds when B is achieved; ``a_end`` and
+    ``b_end``: and when the recipe ends (not for an ensure its recipe aborts)."""
 
     a: str
     b: str
-    where: str     # agent.task.recipe
+    where: str     # agent.task.recipe (seq, kept); 'AGENT (planned tasks)' (plan)
     a_text: str
     b_text: str
+    kind: str = "seq"
+    kept: bool = False
+    a_pred: str = ""
+    b_pred: str = ""
+    a_end: bool = False
+    b_end: bool = False
+
+    @property
+    def a_site(self) -> str:
+        return self.a[len("kept:"):] if self.kind == "kept" else self.a
 
 
-def sequential_pairs(model: CompiledModel) -> list[Pair]:
-    """The pairs of consecutive makes of every recipe (the TCA property's default pairs)."""
-    by_pos = {(s.pos.file, s.pos.line, s.pos.col): s for s in model.sites.values() if s.kind == "make"}
+def sequential_pairs(model: CompiledModel, kept=False, plans: bool = True) -> list[Pair]:
+    """The sequential sub-goals of a compiled model (docs/checking.md, sequential achievement).
+
+    * every ordered pair of constraint-sending statements of one block (body, or end) of a
+      recipe whatever stands between them, not only consecutive ones: the monitor reads
+      commands only, so a sub-goal whose subtree issues none (its predicate already holds)
+      does not carry the order of its neighbours over. A ``make`` first is a ``seq`` pair; an
+      ``ensure`` first is one only when its handle is aborted between the two (it does not
+      block: still in force, it protects what follows rather than precedes it);
+    * with ``plans``, one ``plan`` pair per agent whose decisions may plan sub-goal tasks (a
+      task with pre-conditions, or a candidate under an abduced hypothesis).
+
+    ``kept``: True (every recipe), or a collection of 'agent.task.recipe' names whose pairs also
+    check that an achieved sub-goal is not undone; then an ``ensure`` still in force over a
+    later statement gives a ``kept`` pair."""
+    from . import ast as a
+    by_pos = {(s.pos.file, s.pos.line, s.pos.col): s for s in model.sites.values() if s.kind in ("make", "ensure")}
     out = []
     for ag in model.spec.agents:
         for t in ag.tasks:
             for r in t.recipes:
-                for ma, mb in r.sequential_pairs():
-                    sa = by_pos.get((ma.pos.file, ma.pos.line, ma.pos.col))
-                    sb = by_pos.get((mb.pos.file, mb.pos.line, mb.pos.col))
-                    if sa and sb:
-                        out.append(Pair(sa.const, sb.const, f"{ag.name}.{t.name}.{r.name}", sa.text, sb.text))
+                where = f"{ag.name}.{t.name}.{r.name}"
+                keep = kept is True or (not isinstance(kept, bool) and where in kept)
+                aborted = {st.handle for st in r.statements() if isinstance(st, a.Abort)}
+                for block in (r.body, r.end):
+                    sends = []      # (index in the block, statement, site, predicate)
+                    aborts: dict[str, list[int]] = {}
+                    for k, st in enumerate(block):
+                        if isinstance(st, a.Abort):
+                            aborts.setdefault(st.handle, []).append(k)
+                        elif isinstance(st, (a.Make, a.Ensure)):
+                            site = by_pos.get((st.pos.file, st.pos.line, st.pos.col))
+                            if site is not None:
+                                sends.append((k, st, site, _predicate_text(st.constraint.expr, ag.name)))
+
+                    def to_end(st) -> bool:
+                        return isinstance(st, a.Make) or not (st.handle and st.handle in aborted)
+                    for i, (ka, sta, sa, pa) in enumerate(sends):
+                        for kb, stb, sb, pb in sends[i + 1:]:
+                            common = dict(a_pred=pa, b_pred=pb, a_end=to_end(sta), b_end=to_end(stb))
+                            if isinstance(sta, a.Make):
+                                out.append(Pair(sa.const, sb.const, where, sa.text, sb.text, "seq", keep, **common))
+                            elif sta.handle and any(ka < k < kb for k in aborts.get(sta.handle, ())):
+                                out.append(Pair(sa.const, sb.const, where, sa.text, sb.text, "seq", False, **common))
+                            elif keep:
+                                out.append(Pair(f"kept:{sa.const}", sb.const, where, sa.text, sb.text, "kept",
+                                                True, **common))
+    if plans:
+        planning = {h[0] for hs in model.hypotheses.values() for h in hs}
+        for ag in model.spec.agents:
+            if any(t.pre for t in ag.tasks) or ag.name in planning:
+                out.append(Pair(f"plan:{ag.name}", f"plan:{ag.name}", f"{ag.name} (planned tasks)",
+                                "a planned sub-goal task", "the next planned task", "plan"))
     return out
+
+
+def job_sequence_pairs(model: CompiledModel, recipes=(), kept=False, source: str = "") -> list[Pair]:
+    """The pairs a sequential-achievement check on ``model`` monitors: every pair of
+    :func:`sequential_pairs` (with ``kept``), or only those of ``recipes`` ('agent.task.recipe').
+    A recipe named with no pair, and a check left with no pair at all, are errors (``source``:
+    the job or property file, at the head of the message): never a silent pass."""
+    every = sequential_pairs(model, kept=kept)
+    head = f"{source}: " if source else ""
+    if recipes:
+        missing = set(recipes) - {p.where for p in every}
+        if missing:
+            raise RoarError(f"{head}[sequential-achievement] names recipes with no 'make A; make B' pair (nor an "
+                            f"ensure aborted before a later make or ensure): {', '.join(sorted(missing))}")
+    if kept is not True and kept:
+        known = {f"{ag.name}.{t.name}.{r.name}" for ag in model.spec.agents for t in ag.tasks for r in t.recipes}
+        unknown = set(kept) - known
+        if unknown:
+            raise RoarError(f"{head}[sequential-achievement] kept names recipes the spec does not have: "
+                            f"{', '.join(sorted(unknown))}")
+    pairs = [p for p in every if not recipes or p.where in recipes]
+    if not pairs:
+        raise RoarError(f"{head}sequential-achievement has nothing to check: the spec has no sequential sub-goals "
+                        f"(two constraint-sending statements in one block of a recipe, the first a make or an "
+                        f"ensure aborted before the second; or an agent whose decisions plan sub-goal tasks)")
+    return pairs
+
+
+def _predicate_text(e, own: str) -> str:
+    """A constraint's predicate with the sender's unqualified names written ``own::name``."""
+    import dataclasses
+    from . import ast as a
+    from .pretty import format_expr
+
+    def q(x):
+        if isinstance(x, a.Name):
+            return a.Remote(own, x.name, pos=x.pos)
+        if isinstance(x, a.Call) or not isinstance(x, a.Expr):
+            return x
+        kw = {f.name: q(getattr(x, f.name)) for f in dataclasses.fields(x)
+              if f.compare and isinstance(getattr(x, f.name), a.Expr)}
+        return dataclasses.replace(x, **kw) if kw else x
+    return format_expr(q(e))
+
+
+@dataclass(frozen=True)
+class SeqViolation:
+    """A broken sequential-achievement pair in a state, and what to print about it."""
+
+    pair: Pair
+    message: str
 
 
 class RoarSystem(ClfSystem):
@@ -98,11 +236,7 @@ class RoarSystem(ClfSystem):
         super().__init__(model.program(), start, opts)
         self.model = model
         self.pairs = list(pairs or [])
-        self._a_sites = {p.a for p in self.pairs}
-        self._b_sites = {p.b for p in self.pairs}
-        self._resets = {}
-        for p in self.pairs:
-            self._resets.setdefault(p.a, []).append(p.b)
+        self._init_monitor()
 
     # ---------------------------------------------------------------- steps
     def _successor(self, state: Context, choice) -> Successor:
@@ -176,13 +310,60 @@ class RoarSystem(ClfSystem):
         return None
 
     # ---------------------------------------------------------------- sequential achievement monitor
+    def _init_monitor(self) -> None:
+        m = self.model
+        seq = [p for p in self.pairs if p.kind == "seq"]
+        self._seq = seq
+        self._preds: dict[str, list[Pair]] = {}          # site B -> the pairs (A, B)
+        for p in seq:
+            self._preds.setdefault(p.b, []).append(p)
+        self._plan_agents = {p.a[len("plan:"):] for p in self.pairs if p.kind == "plan"}
+        self._task_const = {v: k for k, v in m.tasks.items()}            # (agent, task) -> const
+        # kept: the statements whose achievement is remembered, their predicates, the checks
+        kept = [p for p in self.pairs if p.kept and p.kind in ("seq", "kept")]
+        self._kept_after: dict[str, list[Pair]] = {}     # site B -> kept pairs (A, B)
+        self._kept_info: dict[str, tuple] = {}           # site -> (where, text, predicate text)
+        self._kept_of_recipe: dict[str, list[str]] = {}  # recipe const -> its sites checked at its end
+        rconst = {v: k for k, v in m.recipes.items()}
+        for p in kept:
+            self._kept_after.setdefault(p.b, []).append(p)
+            for site, text, pred, at_end in ((p.a_site, p.a_text, p.a_pred, p.a_end),
+                                             (p.b, p.b_text, p.b_pred, p.b_end)):
+                if site not in self._kept_info:
+                    self._kept_info[site] = (p.where, text, pred)
+                    rc = rconst.get(tuple(p.where.split(".")))
+                    if rc is not None and at_end:
+                        self._kept_of_recipe.setdefault(rc, []).append(site)
+        # the sites whose requests are tagged: the statements of order pairs, and the kept ones
+        self._seq_sites = {p.a for p in seq} | {p.b for p in seq} | set(self._kept_info)
+        self._kept_formula: dict = {}
+        if kept:
+            from .props import parse_formula
+            for site, (_where, text, pred) in self._kept_info.items():
+                at = m.sites[site].pos if site in m.sites else None
+                try:
+                    self._kept_formula[site] = parse_formula(pred, temporal=False).bind(m)
+                except RoarError as exc:
+                    raise RoarError(f"sequential-achievement (kept): the predicate of '{text}' cannot be "
+                                    f"evaluated on a state: {exc.message}", at) from None
+
     def _monitor(self, state: Context, nxt: Context, step) -> None:
         consumed = [f for _m, f in step.consumed if type(f) is Root]
         produced = [f for _m, f in step.produced if type(f) is Root]
         site = _SITE_RULE.match(step.rule)
         site_c = f"pp{site.group(1)}_{site.group(2)}" if site else None
+        if self._kept_formula:
+            _remove(nxt, MON_UNDONE, lambda g: True)     # a violation flag lives one state
         old_reqs = {V.rq(f).request for f in consumed if _h(f) == V.RQ}
-        # new requests inherit the subtrees of the request their emitter handles
+        # a decision planned tasks: a new plan instance for the request
+        if self._plan_agents and step.rule == "tasks_chosen":
+            for f in produced:
+                if _h(f) == V.HS and _h(V.hs(f).phase) == "h_write":
+                    chosen = V.unwrap(V.hs(f).phase)
+                    if _h(chosen) == "vsome":
+                        self._new_plan(state, nxt, V.hs(f).request, V.unwrap(chosen))
+        # new requests inherit the subtrees of the activation that sends them; a sending
+        # statement of a pair roots its own subtree (one per activation)
         for f in produced:
             if _h(f) != V.RQ:
                 continue
@@ -190,22 +371,21 @@ class RoarSystem(ClfSystem):
             if q.request in old_reqs:
                 continue
             tags = set(self._tags_of_inst(state, q.emitter))
-            if site_c in self._a_sites or site_c in self._b_sites:
-                tags.add(site_c)
-            for b in self._resets.get(site_c, ()):   # a new instance of A: B has not started
-                _remove(nxt, V.MON_B, lambda g, b=b: _h(V.mon_b(g).pair) == b)
+            if site_c in self._seq_sites:
+                tags.add(const(TAG_SITE, const(site_c), q.emitter))
             for t in tags:
-                nxt.add_fact(const(V.MON_IN, q.request, const(t)), LIN)
-        # commands start in the subtrees of the request their activation handles
+                nxt.add_fact(const(V.MON_IN, q.request, t), LIN)
+        # commands start in the subtrees of the activation that calls
+        inst = None
         for f in produced:
             if _h(f) != V.PENDING:
                 continue
-            inst = next((V.ctl(g).inst for g in consumed if _h(g) == V.CTL), None)
-            tags = self._tags_of_inst(state, inst) if inst is not None else set()
-            for t in tags:
-                nxt.add_fact(const(V.MON_CMD, V.pending(f).dest, const(t)), LIN)
-                if t in self._b_sites and not _has(nxt, V.MON_B, lambda g, t=t: _h(V.mon_b(g).pair) == t):
-                    nxt.add_fact(const(V.MON_B, const(t)), LIN)
+            if inst is None:
+                inst = next((V.ctl(g).inst for g in consumed if _h(g) == V.CTL), False)
+            for t in (self._tags_of_inst(state, inst) if inst is not False else ()):
+                nxt.add_fact(const(V.MON_CMD, V.pending(f).dest, t), LIN)
+                if self._second(t) and not _has(nxt, V.MON_B, lambda g, t=t: g.args[0] is t):
+                    nxt.add_fact(const(V.MON_B, t), LIN)
         # commands end; requests disappear
         for f in consumed:
             h = _h(f)
@@ -215,36 +395,186 @@ class RoarSystem(ClfSystem):
         gone = old_reqs - {V.rq(f).request for f in produced if _h(f) == V.RQ}
         for r in gone:
             _remove(nxt, V.MON_IN, lambda g, r=r: V.mon_in(g).request is r)
+        if self._kept_formula:
+            self._kept_step(nxt, consumed, produced, step.rule)
+        self._collect(nxt)
+
+    def _second(self, tag) -> bool:
+        """Can ``tag`` be the second subtree of a pair (so its first command is recorded)?"""
+        h = _h(tag)
+        return h == TAG_TASK or (h == TAG_SITE and _h(tag.args[0]) in self._preds)
+
+    def _firsts(self, ctx: Context, tag) -> list:
+        """The subtrees that must be over before a command of ``tag``'s starts."""
+        h = _h(tag)
+        if h == TAG_SITE:
+            return [const(TAG_SITE, const(p.a), tag.args[1]) for p in self._preds.get(_h(tag.args[0]), ())]
+        if h == TAG_TASK:
+            plan = self._plan(ctx, tag.args[0])
+            if plan is not None:
+                ts = list_items(plan.args[3])
+                for k in range(1, len(ts)):
+                    if V.unwrap(ts[k]) is tag.args[1]:
+                        return [const(TAG_TASK, tag.args[0], V.unwrap(ts[k - 1]))]
+        return []
+
+    def _collect(self, nxt: Context) -> None:
+        """Forget what can no longer matter (so that retried recipes do not grow the state): a
+        second subtree's start once no first subtree of its pairs is live (no request, no
+        running command: a live activation always handles a live request), a plan no longer
+        current once no request or command of it is live."""
+        started = _facts(nxt, V.MON_B)
+        plans = _facts(nxt, MON_PLAN)
+        if not started and not plans:
+            return
+        live = {g.args[1] for g in _facts(nxt, V.MON_IN)} | {g.args[1] for g in _facts(nxt, V.MON_CMD)}
+        for g in started:
+            if not any(t in live for t in self._firsts(nxt, g.args[0])):
+                nxt.remove_fact(g, LIN)
+        if plans:
+            reqs = {V.rq(f).request for f in _facts(nxt, V.RQ)}
+            used = {t.args[0] for t in live if _h(t) == TAG_TASK}
+            for g in plans:
+                if (_h(g.args[4]) != "tt" or g.args[1] not in reqs) and g.args[0] not in used:
+                    nxt.remove_fact(g, LIN)
+
+    def _new_plan(self, state: Context, nxt: Context, req, tasks) -> None:
+        q = next((V.rq(f) for f in _facts(state, V.RQ) if V.rq(f).request is req), None)
+        if q is None or self.model.agents.get(_h(q.agent)) not in self._plan_agents:
+            return
+        for g in _facts(nxt, MON_PLAN):   # the plan it replaces is no longer current
+            if g.args[1] is req and _h(g.args[4]) == "tt":
+                nxt.remove_fact(g, LIN)
+                nxt.add_fact(const(MON_PLAN, *g.args[:4], const("ff")), LIN)
+        if len(list_items(tasks)) >= 2:
+            nxt.add_fact(const(MON_PLAN, param_term(Param("plan")), req, q.cst, tasks, const("tt")), LIN)
+
+    def _plan(self, ctx: Context, p):
+        return next((g for g in _facts(ctx, MON_PLAN) if g.args[0] is p), None)
+
+    def _inst_info(self, state: Context, inst):
+        """(request, task const) of the activation ``inst`` (a recipe's or a checker's)."""
+        bag = state.index.get(_ACT)
+        if bag:
+            for f in bag.items:
+                a = V.act(f)
+                if a.inst is inst:
+                    return a.request, _h(a.task)
+        bag = state.index.get(_CHK)
+        if bag:
+            for f in bag.items:
+                c = V.chk(f)
+                if c.inst is inst:
+                    rc = self.model.recipes.get(_h(c.recipe))
+                    return c.request, (self._task_const.get(rc[:2]) if rc else None)
+        return None, None
 
     def _tags_of_inst(self, state: Context, inst) -> set:
-        """The subtrees (pair sites) of the request activation ``inst`` handles."""
-        req = None
-        for fam, decode in ((_ACT, V.act), (_CHK, V.chk)):
-            bag = state.index.get(fam)
-            if bag:
-                for f in bag.items:
-                    a = decode(f)
-                    if a.inst is inst:
-                        req = a.request
-                        break
-            if req is not None:
-                break
+        """The subtrees the activation ``inst`` works in: those of the request it handles, and the
+        task it runs when that task is part of the request's current plan."""
+        req, task = self._inst_info(state, inst)
         if req is None:
             return set()
         bag = state.index.get(_MON_IN)
-        return {_h(m.pair) for m in map(V.mon_in, bag.items) if m.request is req} if bag else set()
+        tags = {m.pair for m in map(V.mon_in, bag.items) if m.request is req} if bag else set()
+        if task is not None and self._plan_agents:
+            for g in _facts(state, MON_PLAN):
+                if g.args[1] is req and _h(g.args[4]) == "tt":
+                    if any(_h(V.unwrap(x)) == task for x in list_items(g.args[3])):
+                        tags.add(const(TAG_TASK, g.args[0], const(task)))
+        return tags
+
+    def _kept_step(self, nxt: Context, consumed: list, produced: list, rule: str) -> None:
+        """Remember the statements achieved; flag one undone when a later statement of its block
+        is achieved or its recipe ends."""
+        before = {V.rs(f).request: _h(V.rs(f).state) for f in consumed if _h(f) == V.RS}
+        for f in produced:
+            if _h(f) != V.RS or _h(V.rs(f).state) != "s_success" or before.get(V.rs(f).request) == "s_success":
+                continue
+            r = V.rs(f).request
+            q = next((V.rq(g) for g in _facts(nxt, V.RQ) if V.rq(g).request is r), None)
+            if q is None:
+                continue
+            for mi in map(V.mon_in, _facts(nxt, V.MON_IN)):
+                t = mi.pair
+                if mi.request is not r or _h(t) != TAG_SITE or t.args[1] is not q.emitter:
+                    continue
+                s = _h(t.args[0])
+                if s not in self._kept_info:
+                    continue
+                got = const(MON_GOT, t.args[0], q.emitter)
+                if not nxt.count(got, LIN):
+                    nxt.add_fact(got, LIN)
+                for p in self._kept_after.get(s, ()):
+                    if nxt.count(const(MON_GOT, const(p.a_site), q.emitter), LIN) and not self._holds(p.a_site, nxt):
+                        self._undone(nxt, p.a_site, const(s))
+        ended = {V.act(f).inst: _h(V.act(f).recipe) for f in consumed if _h(f) == V.ACT}
+        if rule == "recipe_end":
+            for i, rc in ended.items():
+                for s in self._kept_of_recipe.get(rc, ()):
+                    if nxt.count(const(MON_GOT, const(s), i), LIN) and not self._holds(s, nxt):
+                        self._undone(nxt, s, const(TAG_END))
+        for i in set(ended) - {V.act(f).inst for f in produced if _h(f) == V.ACT}:
+            _remove(nxt, MON_GOT, lambda g, i=i: g.args[1] is i)
+
+    def _undone(self, nxt: Context, a: str, b) -> None:
+        f = const(MON_UNDONE, const(a), b)
+        if not nxt.count(f, LIN):
+            nxt.add_fact(f, LIN)
+
+    def _holds(self, site: str, ctx: Context) -> bool:
+        from .props import view_of
+        return bool(self._kept_formula[site].pf(view_of(self.model, ctx)))
+
+    def sequence_violation(self, state: Context) -> Optional[SeqViolation]:
+        """The sequential-achievement pair the state breaks, with its message in the spec's terms:
+        a command of A's subtree running after one of B's subtree started (the first such pair
+        in the order of ``pairs``, then the plans), or (kept) an achieved predicate undone."""
+        started = {g.args[0] for g in _facts(state, V.MON_B)}
+        if started:
+            running = {g.args[1] for g in _facts(state, V.MON_CMD)}
+            for p in self._seq:
+                for t in started:
+                    if _h(t) == TAG_SITE and _h(t.args[0]) == p.b and \
+                            const(TAG_SITE, const(p.a), t.args[1]) in running:
+                        return SeqViolation(p, _order_message(p))
+            for t in sorted((t for t in started if _h(t) == TAG_TASK), key=lambda t: t.args[1].head.name):
+                for first in self._firsts(state, t):
+                    if first in running:
+                        p = self._plan_pair(state, first, t)
+                        return SeqViolation(p, _order_message(p))
+        for g in _facts(state, MON_UNDONE):
+            a, b = _h(g.args[0]), _h(g.args[1])
+            where, a_text, pred = self._kept_info[a]
+            b_text = self._kept_info[b][1] if b in self._kept_info else "the recipe ends"
+            when = f"when '{b_text}' is achieved" if b in self._kept_info else "when the recipe ends"
+            f = self._kept_formula[a]
+            from .props import view_of
+            values = f.explain(view_of(self.model, state))
+            return SeqViolation(Pair(f"kept:{a}", b if b in self._kept_info else "end", where, a_text, b_text,
+                                     "kept", True, pred),
+                                f"in {where}, '{a_text}' was achieved, but {pred} no longer holds {when}"
+                                + (f": {values}" if values else ""))
+        return None
+
+    def _plan_pair(self, state: Context, first, second) -> Pair:
+        m = self.model
+        plan = self._plan(state, first.args[0])
+        agent, cst = m.csts.get(_h(plan.args[2]), ("?", "?"))
+        names = [m.tasks.get(_h(V.unwrap(x)), ("?", "?"))[1] for x in list_items(plan.args[3])]
+        ta, tb = (m.tasks.get(_h(t.args[1]), ("?", "?")) for t in (first, second))
+        return Pair(_h(first.args[1]), _h(second.args[1]), f"the plan of {agent} for '{cst}' "
+                    f"({' then '.join(names)})", f"task {ta[0]}::{ta[1]}", f"task {tb[0]}::{tb[1]}", "plan")
 
     def violates_sequence(self, state: Context) -> Optional[Pair]:
-        """The pair whose order the state breaks: a command of A's subtree running after one of
-        B's subtree started."""
-        started = {_h(V.mon_b(f).pair) for f in _facts(state, V.MON_B)}
-        if not started:
-            return None
-        running = {_h(V.mon_cmd(f).pair) for f in _facts(state, V.MON_CMD)}
-        for p in self.pairs:
-            if p.b in started and p.a in running:
-                return p
-        return None
+        """The pair the state breaks (see :meth:`sequence_violation`), or None."""
+        v = self.sequence_violation(state)
+        return v.pair if v is not None else None
+
+    def sequence_reason(self, state: Context) -> Optional[str]:
+        """What the state breaks, in the spec's terms (the verdict's message), or None."""
+        v = self.sequence_violation(state)
+        return v.message if v is not None else None
 
     # ---------------------------------------------------------------- exclusive writes
     def shared_write(self, state: Context) -> Optional[tuple[str, list[str]]]:
@@ -268,6 +598,11 @@ class RoarSystem(ClfSystem):
     @property
     def where_cells(self) -> dict:
         return getattr(self.model, "where_cells", {})
+
+
+def _order_message(p: Pair) -> str:
+    return (f"in {p.where}, a command of the subtree of '{p.b_text}' started before every command of the "
+            f"subtree of '{p.a_text}' ended")
 
 
 def _facts(ctx: Context, fam: str):

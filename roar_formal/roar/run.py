@@ -21,17 +21,18 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Callable, Optional
 
-from ..clf.forward import Run
+from ..clf.forward import Run, enabled_steps
 from ..clf.printer import show
 from ..clf.terms import Const, Root, const, num_term, num_value, string_term, string_value
 from ..errors import RoarError
-from .compile import CompiledModel, num_lit
+from .compile import CRASH_RULES, CompiledModel, Crashes, num_lit
 from .functional import Outcome, Registry
 from . import vocabulary as V
 from .pretty import string_literal
 
 __all__ = ["Fault", "RoarEvent", "RunResult", "run_model", "parse_fault", "value_of", "Values", "Narrator",
-           "Resolver", "collect_result", "list_items", "format_value", "describe_ec"]
+           "Resolver", "collect_result", "list_items", "format_value", "describe_ec", "CrashAt", "parse_crash",
+           "crash_setup"]
 
 FINAL = {"s_success": "success", "s_failure": "failure", "s_aborted": "aborted"}
 STATE_NAMES = {"s_sent": "sent", "s_pending": "pending", "s_running": "running", "s_tempfail": "temporary failure",
@@ -60,6 +61,48 @@ def parse_fault(text: str) -> Fault:
         raise RoarError(f"--fault {text!r}: expected NAME, NAME:K (the K-th call, from 1) or NAME=OUTCOME, "
                         f"where NAME is a function ('f' or 'agent::f')")
     return Fault(m.group(1), int(m.group(2)) if m.group(2) else None, m.group(3))
+
+
+@dataclass(frozen=True)
+class CrashAt:
+    """``AGENT@STEP`` (the agent crashes at that step of the run and comes back as soon as it can)
+    or ``AGENT@STEP-BACK`` (and comes back at step BACK): docs/semantics.md, "Crashes".
+
+    The crash takes place at the first step from STEP on at which the agent handles a request
+    (the model's crash: down and idle, an agent differs from up in nothing a step could show
+    before a request reaches it); the comeback at the first step from BACK (or from the crash)
+    at which none of its tasks is committed any more."""
+
+    agent: str
+    step: int
+    back: Optional[int] = None
+
+    def __str__(self) -> str:
+        return f"{self.agent}@{self.step}" + (f"-{self.back}" if self.back is not None else "")
+
+
+_CRASH = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)@(\d+)(?:-(\d+))?$")
+
+
+def parse_crash(text) -> CrashAt:
+    """``AGENT@STEP`` or ``AGENT@STEP-BACK`` (steps of the run's trace, from 1; BACK after STEP)."""
+    if isinstance(text, CrashAt):
+        return text
+    m = _CRASH.match(str(text).strip())
+    if not m or int(m.group(2)) < 1 or (m.group(3) is not None and int(m.group(3)) <= int(m.group(2))):
+        raise RoarError(f"--crash {text!r}: expected AGENT@STEP (the agent crashes at that step of the run and "
+                        f"comes back as soon as it can) or AGENT@STEP-BACK (and comes back at step BACK, after "
+                        f"STEP); steps count from 1")
+    return CrashAt(m.group(1), int(m.group(2)), int(m.group(3)) if m.group(3) else None)
+
+
+def crash_setup(crashes) -> Optional[Crashes]:
+    """What the model of a run with these crashes is compiled with (``compile_spec(...,
+    crashes=crash_setup(cs))``): every agent named armed from the start, as many crashes as given."""
+    cs = [parse_crash(c) for c in crashes]
+    if not cs:
+        return None
+    return Crashes(tuple(dict.fromkeys(c.agent for c in cs)), len(cs), True)
 
 
 @dataclass
@@ -319,8 +362,8 @@ class Narrator:
         st = _StepFacts(i, step)
         self._note_activations(st)
         out: list[RoarEvent] = []
-        for part in (self._requests_sent, self._state_changes, self._aborts, self._conflicts, self._tasks_chosen,
-                     self._recipes, self._primitives, self._writes, self._pauses):
+        for part in (self._crashes, self._requests_sent, self._state_changes, self._aborts, self._conflicts,
+                     self._tasks_chosen, self._recipes, self._primitives, self._writes, self._pauses):
             out.extend(part(st))
         return out
 
@@ -370,6 +413,8 @@ class Narrator:
                     why = ": the ensured predicate stopped holding"
                 elif s == "s_tempfail" and st.rule.startswith("ensure_unmet"):
                     why = ": its tasks ran but the ensured predicate does not hold"
+                elif s == "s_failure" and st.rule.startswith("unavailable"):
+                    why = f": {agent} is unavailable (it crashed)"
                 yield RoarEvent(st.i, "state", agent, f"{lab} {STATE_NAMES.get(prev, 'new') if prev else 'new'}"
                                 f" -> {STATE_NAMES[s]}  ({text}){why}",
                                 {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s],
@@ -382,6 +427,32 @@ class Narrator:
                 was = STATE_NAMES.get(self._name(x.state))
                 yield RoarEvent(st.i, "state", agent, f"{lab} {was} -> aborted  ({text})",
                                 {"request": lab, "from": was, "to": "aborted", **self.req_meta.get(lab, {})})
+
+    def _crashes(self, st: "_StepFacts"):
+        """Crash faults (docs/semantics.md, Crashes): the crash plan, a crash, a comeback, an
+        activation stopped by its agent's crash."""
+        rule = st.rule
+        if rule.startswith(("may_crash_a_", "never_crash_a_")):
+            agent = rule.split("_crash_a_", 1)[1]
+            may = rule.startswith("may")
+            yield RoarEvent(st.i, "crash-plan", agent, f"{agent} {'may crash' if may else 'does not crash'} in this run",
+                            {"may_crash": may})
+            return
+        if rule in CRASH_RULES:
+            cep = next((V.cep(c) for c in st.made(V.CEP)), None)
+            agent = self.m.agents.get(self._name(cep.agent), "?") if cep is not None else "?"
+            if rule == "crash":
+                yield RoarEvent(st.i, "crash", agent, f"{agent} crashed", {})
+            else:
+                again = " (it may crash again)" if rule == "back_armed" else ""
+                yield RoarEvent(st.i, "back", agent, f"{agent} back{again}", {"may_crash": rule == "back_armed"})
+            return
+        if rule.startswith("crash_stop"):
+            for a in map(V.act, st.made(V.ACT)):
+                agent, _task, recipe = self.acts.get(a.inst, ("?", "?", "?"))
+                lab = self.label(a.request)
+                yield RoarEvent(st.i, "recipe-stop", agent, f"{lab}: recipe {recipe} stopped: {agent} crashed "
+                                f"(no end block; the requests it holds are aborted)", {"request": lab, "recipe": recipe})
 
     def _aborts(self, st: "_StepFacts"):
         for a in map(V.abortreq, st.made(V.ABORTREQ)):
@@ -498,7 +569,7 @@ class Narrator:
         for z in map(V.rstat, st.made(V.RSTAT)):
             i_ = z.inst
             was, now = before_z.get(i_), self._name(z.pause)
-            if was is None or (was == "go") == (now == "go") or st.rule.startswith("kill"):
+            if was is None or (was == "go") == (now == "go") or st.rule.startswith(("kill", "crash_stop")):
                 continue
             who = self.acts.get(i_, ("?", "?", "?"))
             kind = "resume" if now == "go" else "pause"
@@ -551,6 +622,8 @@ def _reason(t, m) -> str:
         return f"constraint failed: {m.csts.get(V.k_cst(t).cst.head.name, ('?', '?'))[1]}"
     if h == "k_switch":
         return f"switched away from {m.csts.get(V.unwrap(t).head.name, ('?', '?'))[1]}"
+    if h == "k_crash":
+        return "stopped: its agent crashed"
     return show(t)
 
 
@@ -593,6 +666,9 @@ def describe_ec(t, m: CompiledModel) -> list[str]:
             agent, task = m.tasks.get(V.unwrap(x).head.name, ("?", "?"))
             out.append(f"concurrency: task {agent}::{task} is held by another constraint, and no agent of "
                        f"its calling context has an alternative")
+        elif h == "vunavail":
+            agent = m.agents.get(V.unwrap(x).head.name, "?")
+            out.append(f"unavailable: agent {agent} crashed")
         elif h == "vsite":
             s = m.sites.get(V.unwrap(x).head.name)
             out.append(f"local failure: {s.agent}.{s.task}.{s.recipe} at {s.pos.line}:{s.pos.col}: {s.text}"
@@ -608,12 +684,16 @@ def describe_ec(t, m: CompiledModel) -> list[str]:
 def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, registry: Optional[Registry] = None,
               faults: Optional[list[Fault]] = None, fair: bool = False,
               on_event: Optional[Callable[[RoarEvent], None]] = None,
-              on_state: Optional[Callable[[object], None]] = None) -> RunResult:
+              on_state: Optional[Callable[[object], None]] = None, crashes=()) -> RunResult:
     """Run the model to quiescence (or ``max_steps`` CLF steps); the functional layer answers pending calls.
 
     ``on_event`` sees each ROAR event as it happens; ``on_state`` sees the CLF context after each
-    step (for checking a state invariant along the run; it must not change it)."""
+    step (for checking a state invariant along the run; it must not change it). ``crashes``
+    (``CrashAt`` or ``"AGENT@STEP[-BACK]"``) need a model compiled with ``crash_setup(crashes)``:
+    the scheduler never chooses a crash or a comeback; each is the compiled crash rule, taken at the
+    step given (docs/semantics.md, "Crashes")."""
     prog = model.program()
+    schedule = _CrashSchedule(model, prog, crashes) if crashes else None
     start = next(d for d in prog.sig.directives if hasattr(d, "start"))
     ctx = prog.start_context(start.start)
     values = Values(model)
@@ -623,7 +703,7 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     events: list[RoarEvent] = []
     external: dict = {}   # step number -> (pending fact, answer fact): the functional layer's steps
 
-    def on_step(step, _ctx):
+    def record(step, _ctx):
         i = len(steps) + 1
         steps.append((step.rule, [show(f) for _m, f in step.consumed if type(f) is Root],
                       [show(f) for _m, f in step.produced if type(f) is Root]))
@@ -634,11 +714,32 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
         if on_state:
             on_state(_ctx)
 
+    def fire_due() -> bool:
+        """Take the crashes and comebacks due before the next step; True if one was taken."""
+        fired = False
+        while schedule is not None:
+            choice = schedule.due(ctx, len(steps) + 1)
+            if choice is None:
+                return fired
+            _nxt, st = prog.successor(ctx, choice)   # the rule's instance, applied to the run's context
+            record(runner.external([f for _m, f in st.consumed], [f for _m, f in st.produced], rule=choice.rule),
+                   ctx)
+            fired = True
+        return fired
+
+    def on_step(step, _ctx):
+        record(step, _ctx)
+        fire_due()
+
     for _mode, f, _n in ctx.facts():
         if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.RQ:
             narrator.label(V.rq(f).request)
             narrator.req_info["R0"] = (model.request_agent, model.csts[model.request_cst][1])
-    runner = Run(prog.templates, ctx, seed=seed, fair=fair, prover=prog.prover(), on_step=on_step)
+    templates = prog.templates
+    if model.crashes:   # crashes and comebacks happen when --crash says, never by the scheduler's choice
+        templates = [t for t in templates if t.name not in CRASH_RULES]
+    runner = Run(templates, ctx, seed=seed, fair=fair, prover=prog.prover(), on_step=on_step)
+    fire_due()
     pending = Const("pending")
     quiescent = False
     while True:
@@ -648,6 +749,8 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
         bag = ctx.index.get(pending)
         calls = list(bag.items) if bag else []
         if not calls:
+            if schedule is not None and schedule.at_rest(ctx) and fire_due():
+                continue   # a comeback due later: nothing else can happen before it
             break
         # answer the oldest call first (all pending calls were made while the rest waited)
         for f in calls:
@@ -666,8 +769,8 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
                     made.append(const(V.CONTAINS, V.contains(old).cell,
                                       values.term(value, model.cell_types.get(cell))))
             step = runner.external(eaten, made, rule="functional_layer")
+            external[len(steps) + 1] = (f, ans)
             on_step(step, ctx)
-            external[len(steps)] = (f, ans)
         if max_steps and runner.steps >= max_steps:
             quiescent = False
             break
@@ -675,9 +778,82 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     if unused:
         names = ", ".join(str(f) for f in unused)
         raise RoarError(f"--fault {names}: no such call happened in this run (check the name and the call number)")
+    if schedule is not None and quiescent:
+        schedule.check_done(len(steps))
     res = collect_result(model, ctx, steps, events, quiescent, narrator)
     res.external = external
     return res
+
+
+class _CrashSchedule:
+    """The crashes of a run (``--crash``): which crash or comeback is due before a step."""
+
+    def __init__(self, model: CompiledModel, prog, crashes):
+        cs = [parse_crash(c) for c in crashes]
+        cr = model.crashes
+        if not cr or not cr.scheduled:
+            raise RoarError("a run with crashes needs its model compiled with them: compile_spec(..., "
+                            "crashes=crash_setup(crashes))")
+        known = [ag.name for ag in model.spec.agents]
+        for c in cs:
+            if c.agent not in known:
+                raise RoarError(f"--crash {c}: unknown agent {c.agent!r}; the spec's agents: {', '.join(known)}")
+            if c.agent not in cr.agents:
+                raise RoarError(f"--crash {c}: the model was compiled without crashes of {c.agent} "
+                                f"(compile_spec(..., crashes=crash_setup(crashes)))")
+        if len(cs) > cr.bound:
+            raise RoarError(f"--crash: {len(cs)} crashes, but the model was compiled for {cr.bound}")
+        self.queue: dict = {}
+        for c in sorted(cs, key=lambda c: c.step):
+            q = self.queue.setdefault(c.agent, [])
+            if q and (q[-1].back or q[-1].step) >= c.step:
+                raise RoarError(f"--crash {c}: {c.agent} is still down then (--crash {q[-1]})")
+            q.append(c)
+        self.down: dict = {}     # agent -> the crash it is down from
+        self.done: list = []     # crashes taken
+        self.tpl = {t.name: t for t in prog.templates if t.name in CRASH_RULES}
+        self.prover = prog.prover()
+
+    def _choice(self, rule: str, agent: str, ctx):
+        a = f"a_{agent}"
+        for ch in enabled_steps([self.tpl[rule]], ctx, self.prover):
+            if any(V.head_name(f) == V.CEP and V.head_name(V.cep(f).agent) == a for _m, f in ch.consumed):
+                return ch
+        return None
+
+    def due(self, ctx, step: int):
+        for agent, q in self.queue.items():
+            if agent in self.down:
+                c = self.down[agent]
+                if c.back is None or step >= c.back:
+                    ch = self._choice("back_armed" if q else "back", agent, ctx)
+                    if ch is not None:
+                        del self.down[agent]
+                        return ch
+            elif q and step >= q[0].step:
+                ch = self._choice("crash", agent, ctx)
+                if ch is not None:
+                    self.down[agent] = q.pop(0)
+                    self.done.append(self.down[agent])
+                    return ch
+        return None
+
+    def at_rest(self, ctx) -> bool:
+        """The run is quiescent: a comeback due later is due now (nothing else would happen)."""
+        moved = False
+        for agent, c in list(self.down.items()):
+            if c.back is not None:
+                self.down[agent] = CrashAt(c.agent, c.step, None)
+                moved = True
+        return moved or bool(self.down)
+
+    def check_done(self, last: int) -> None:
+        left = [c for q in self.queue.values() for c in q]
+        if left:
+            c = left[0]
+            raise RoarError(f"--crash {c}: {c.agent} handled no request from step {c.step} to the end of the run "
+                            f"(step {last}), so it never crashed: a crash shows only in the requests an agent "
+                            f"handles (docs/semantics.md, Crashes)")
 
 
 def cells_of(ctx, cell: str):

@@ -22,15 +22,15 @@ from ..clf.terms import Const, Root
 __all__ = [
     # family and constructor names
     "CONTAINS", "RQ", "RS", "ECF", "HS", "MASK", "ABORTREQ", "CRES", "ACT", "CHK", "CTL", "RSTAT", "OWNS",
-    "RDONE", "PENDING", "RETURN", "CALLFAIL", "MON_IN", "MON_CMD", "MON_B", "RB_RUN", "RB_SLEEP",
+    "RDONE", "PENDING", "RETURN", "CALLFAIL", "CEP", "MON_IN", "MON_CMD", "MON_B", "RB_RUN", "RB_SLEEP",
     "REQUEST_FAMILIES", "INSTANCE_FAMILIES", "EXPLORER_FAMILIES", "FACTS", "TERMS", "WRAPPERS",
     # records
     "Contains", "Rq", "Rs", "Ecf", "Hs", "Mask", "Abortreq", "Cres", "Act", "Chk", "Ctl", "Rstat", "Owns",
-    "Rdone", "Pending", "Return", "Callfail", "MonIn", "MonCmd", "MonB", "RbRun", "RbSleep",
+    "Rdone", "Pending", "Return", "Callfail", "Cep", "MonIn", "MonCmd", "MonB", "RbRun", "RbSleep",
     "Cons", "MCall", "CCons", "KCst",
     # decoders
     "contains", "rq", "rs", "ecf", "hs", "mask", "abortreq", "cres", "act", "chk", "ctl", "rstat", "owns",
-    "rdone", "pending", "return_", "callfail", "mon_in", "mon_cmd", "mon_b", "rb_run", "rb_sleep",
+    "rdone", "pending", "return_", "callfail", "cep", "mon_in", "mon_cmd", "mon_b", "rb_run", "rb_sleep",
     "cons", "m_call", "ccons", "k_cst", "unwrap", "decode", "head_name", "subject",
 ]
 
@@ -55,6 +55,7 @@ RDONE = "rdone"
 PENDING = "pending"
 RETURN = "return"
 CALLFAIL = "callfail"
+CEP = "cep"
 #: the sequential-achievement monitor's facts (roar/explore.py adds them; not declared in the framework)
 MON_IN = "mon_in"
 MON_CMD = "mon_cmd"
@@ -209,6 +210,14 @@ class Callfail(NamedTuple):
     sorts = ("dest",)
 
 
+class Cep(NamedTuple):
+    """``cep Agent Epoch``: an agent that may crash, and its epoch (a sentinel task ``t_epN``: N
+    crashes and comebacks so far; down when N is odd). Only in models compiled with crashes."""
+    agent: object
+    epoch: object
+    sorts = ("agent", "task")
+
+
 # ------------------------------------------------------------------ facts the explorers add
 
 
@@ -280,7 +289,7 @@ class KCst(NamedTuple):
 FACTS: dict = {
     CONTAINS: Contains, RQ: Rq, RS: Rs, ECF: Ecf, HS: Hs, MASK: Mask, ABORTREQ: Abortreq, CRES: Cres,
     ACT: Act, CHK: Chk, CTL: Ctl, RSTAT: Rstat, OWNS: Owns, RDONE: Rdone, PENDING: Pending, RETURN: Return,
-    CALLFAIL: Callfail,
+    CALLFAIL: Callfail, CEP: Cep,
 }
 #: family name -> record, for the facts the explorers add (never declared in the framework)
 EXPLORER_FAMILIES: dict = {MON_IN: MonIn, MON_CMD: MonCmd, MON_B: MonB, RB_RUN: RbRun, RB_SLEEP: RbSleep}
@@ -289,7 +298,7 @@ TERMS: dict = {"vcons": Cons, "m_call": MCall, "ccons": CCons, "k_cst": KCst}
 #: constructor name -> the sort of its one argument (read with :func:`unwrap`)
 WRAPPERS: dict = {
     "vnum": "number", "vbool": "bool", "vstr": "string", "vrec": "val", "vopq": "number", "vsome": "val",
-    "vtsk": "task", "vcst": "cst", "vviol": "cst", "vbroke": "cst", "vconf": "task", "vsite": "site",
+    "vtsk": "task", "vcst": "cst", "vviol": "cst", "vbroke": "cst", "vconf": "task", "vsite": "site", "vunavail": "agent",
     "m_make": "req", "m_block": "val", "h_write": "val",
     "k_local": "site", "k_switch": "cst", "k_task": "task",
 }
@@ -366,6 +375,10 @@ def return_(f) -> Return:
 
 def callfail(f) -> Callfail:
     return _new(Callfail, f.args)
+
+
+def cep(f) -> Cep:
+    return _new(Cep, f.args)
 
 
 def mon_in(f) -> MonIn:

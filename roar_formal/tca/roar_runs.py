@@ -14,10 +14,18 @@ mapping (docs/tca.md, "ROAR runs as task trees"):
   goal's;
 * **a primitive call is a command message**, a child of the request its
   calling activation handles, active from the call until its answer;
-* **``make A; make B`` in one recipe declares SeqAch(A, B)** for each
-  instance: the request sent from B's site after one from A's site by the
-  same activation. The trace header's ``seq_pairs`` (written by the commands
-  that write traces) names the pairs of sites.
+* **two constraint-sending statements of one block, ``make``/``ensure`` A
+  before B, declare SeqAch(A, B)** for each instance: the requests sent from
+  A's site and then B's site by the same activation (every ordered pair). The
+  trace header's ``seq_pairs`` (written by the commands that write traces)
+  names the pairs of sites;
+* **a plan of sub-goal tasks is a sequence of goals**: when the decision for a
+  request R of an agent named in ``seq_pairs`` (a pair ``plan:AGENT``) plans
+  tasks T1, ..., Tk (k >= 2), each task becomes a goal ``R.Ti`` (``R.Ti#n`` for
+  R's n-th plan), child of R, handled from when it is the task being run
+  (recipe selection included) until its recipe ends well (or the plan is
+  dropped, or R ends), and the commands and requests of its activations are its
+  children; consecutive tasks declare SeqAch(R.Ti, R.Ti+1).
 
 Times are the steps' ``time`` (simulated seconds of robot runs; the steps of
 one instant ordered by their number) or, without one, the step number.
@@ -75,6 +83,7 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
     last_time = Fraction(0)
     recs = list(records)
     timed = any(isinstance(r, dict) and isinstance(r.get("time"), (int, float)) for r in recs)
+    plans = _Plans(header, sent, order, starts, ends)
     for n, rec in enumerate(recs, 1):
         if not isinstance(rec, dict):
             continue
@@ -84,12 +93,15 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
         for ev in _events_of(rec):
             kind = ev.get("kind")
             req = ev.get("request")
+            plans.event(kind, ev, t, pos)
             if kind in ("sent", "state") and isinstance(req, str):
                 if req not in sent:
                     parent = ev.get("parent")
                     parent = parent if isinstance(parent, str) else None
                     if req == "R0":
                         parent = None
+                    em = ev.get("emitter")
+                    parent = plans.parent(parent, em if isinstance(em, str) else None, t)
                     sent[req] = Sent(req, "goal", parent, t, pos, ev.get("agent"), _constraint(ev))
                     order.append(req)
                     rkind[req] = str(ev.get("rkind") or "make")
@@ -107,12 +119,13 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
                             ends[req] = (t, pos)
             elif kind == "primitive-start" and isinstance(ev.get("call"), str):
                 c = ev["call"]
-                parent = req if isinstance(req, str) else None
+                parent = plans.parent(req, None, t) if isinstance(req, str) else None
                 sent[c] = Sent(c, "command", parent, t, pos, ev.get("agent"), str(ev.get("text", "")))
                 order.append(c)
                 starts[c] = (t, pos)
             elif kind == "primitive-end" and isinstance(ev.get("call"), str):
                 ends.setdefault(ev["call"], (t, pos))
+    plans.close_all()
     out: list[Event] = []
     # R0 may show no 'sent': it was in the start state
     for m in order:
@@ -128,6 +141,7 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
                 t_end = starts[m][0] + (TICK / 2 if timed else Fraction(1, 2))
             out.append(Mark("ended", m, t_end, ends[m][1]))
     out += _seq_ach(header, by_emitter, file)
+    out += [Declared("seq_ach", x, y, Pos(file, 1, 1)) for x, y in plans.declared if x in sent and y in sent]
     return out
 
 
@@ -139,7 +153,8 @@ def _constraint(ev: dict) -> Optional[str]:
 
 
 def _seq_ach(header: dict, by_emitter: dict, file: str) -> list[Event]:
-    """SeqAch(A, B) for each request B sent from site b right after a request A from site a by one activation."""
+    """SeqAch(A, B) for every request A sent from site a and B sent later from site b by one
+    activation, (a, b) a pair of the header (every ordered pair of one block, docs/tca.md)."""
     pairs = header.get("seq_pairs")
     if not isinstance(pairs, list):
         return []
@@ -147,10 +162,100 @@ def _seq_ach(header: dict, by_emitter: dict, file: str) -> list[Event]:
     out: list[Event] = []
     for em, sends in by_emitter.items():
         for k, (a_req, a_site, _t) in enumerate(sends):
+            paired = set()
             for b_req, b_site, _tb in sends[k + 1:]:
                 if b_site == a_site:          # a new instance of A: pair it, not this one
                     break
-                if (a_site, b_site) in wanted:
+                if (a_site, b_site) in wanted and b_site not in paired:
+                    paired.add(b_site)
                     out.append(Declared("seq_ach", a_req, b_req, Pos(file, 1, 1)))
-                    break
     return out
+
+
+class _Plans:
+    """The plans of sub-goal tasks, read from the ``tasks``, ``recipe-end`` and final ``state``
+    events of the requests of the agents the header names (``plan:AGENT``): the task goals,
+    their handling intervals, the parents they give to what their activations send and call,
+    and SeqAch between consecutive tasks."""
+
+    def __init__(self, header: dict, sent: dict, order: list, starts: dict, ends: dict):
+        pairs = header.get("seq_pairs")
+        self.agents = {p[0][5:] for p in (pairs if isinstance(pairs, list) else [])
+                       if isinstance(p, list) and p and isinstance(p[0], str) and p[0].startswith("plan:")}
+        self.sent, self.order, self.starts, self.ends = sent, order, starts, ends
+        self.current: dict[str, dict] = {}     # request -> {"tasks", "k", "goals", "agent"}
+        self.count: dict[str, int] = {}        # request -> plans seen
+        self.emitters: dict[str, str] = {}     # activation label -> the task goal it runs for
+        self.last: dict[str, tuple] = {}       # task goal -> (time, pos) of its last child
+        self.open: dict[str, tuple] = {}       # task goal -> when it stopped being the current task
+        self.declared: list[tuple[str, str]] = []
+
+    def event(self, kind, ev: dict, t: Fraction, pos: Pos) -> None:
+        if not self.agents:
+            return
+        req = ev.get("request")
+        if not isinstance(req, str):
+            return
+        if kind == "tasks":
+            self._stop(req, t, pos)
+            ts = ev.get("tasks")
+            if ev.get("agent") in self.agents and isinstance(ts, list) and len(ts) >= 2 \
+                    and all(isinstance(x, str) for x in ts):
+                k = self.count[req] = self.count.get(req, 0) + 1
+                self.current[req] = {"tasks": ts, "k": k, "i": 0, "goals": []}
+                self._begin(req, t, pos)
+        elif kind == "recipe-end" and ev.get("reason") == "ok" and req in self.current:
+            plan = self.current[req]
+            self._end_goal(plan, t, pos)
+            plan["i"] += 1
+            if plan["i"] < len(plan["tasks"]):
+                self._begin(req, t, pos)
+            else:
+                del self.current[req]
+        elif kind == "state" and ev.get("to") in FINAL:
+            self._stop(req, t, pos)
+
+    def _begin(self, req: str, t: Fraction, pos: Pos) -> None:
+        plan = self.current[req]
+        task = plan["tasks"][plan["i"]]
+        gid = f"{req}.{task}" + (f"#{plan['k']}" if plan["k"] > 1 else "")
+        agent = self.sent[req].agent if req in self.sent else None
+        self.sent[gid] = Sent(gid, "goal", req, t, pos, agent, f"task {task}")
+        self.order.append(gid)
+        self.starts[gid] = (t, pos)
+        if plan["goals"]:
+            self.declared.append((plan["goals"][-1], gid))
+        plan["goals"].append(gid)
+
+    def _end_goal(self, plan: dict, t: Fraction, pos: Pos) -> None:
+        if plan["goals"] and plan["goals"][-1] not in self.open:
+            self.open[plan["goals"][-1]] = (t, pos)
+
+    def _stop(self, req: str, t: Fraction, pos: Pos) -> None:
+        plan = self.current.pop(req, None)
+        if plan is not None:
+            self._end_goal(plan, t, pos)
+
+    def parent(self, parent: Optional[str], emitter: Optional[str], t: Fraction) -> Optional[str]:
+        """The parent of a message sent at ``t`` by an activation of request ``parent``: the task
+        goal that activation runs for, when the request's current plan has one."""
+        if not self.agents or parent is None:
+            return parent
+        goal = self.emitters.get(emitter) if emitter is not None else None
+        if goal is None:
+            plan = self.current.get(parent)
+            if plan is None or not plan["goals"]:
+                return parent
+            goal = plan["goals"][-1]
+            if emitter is not None:
+                self.emitters[emitter] = goal
+        self.last[goal] = t
+        return goal
+
+    def close_all(self) -> None:
+        """End every task goal: when it stopped being the current task, or at its last child's
+        sending if that came later (an activation's end block runs after it is stopped). The
+        current task of a plan still running has not ended."""
+        for g, (t, pos) in self.open.items():
+            late = self.last.get(g)
+            self.ends[g] = (max(t, late), pos) if late is not None else (t, pos)

@@ -223,17 +223,22 @@ class AgentSpec:
         from ..roar.functional import load_registry
         return load_registry(self.functional)
 
-    def compile(self, request: str, mode: str = "python") -> "CompiledModel":
+    def compile(self, request: str, mode: str = "python", crashes: Any = None) -> "CompiledModel":
         """The compiled model of a request: ``mode`` "python" for runs (the registry's callables
-        answer calls), "abstract" for exploration (declared outcomes are rules)."""
-        from ..roar.compile import compile_spec
+        answer calls), "abstract" for exploration (declared outcomes are rules). ``crashes``: a
+        ``roar.compile.Crashes``, or the ``--crash`` values of a run (docs/semantics.md, Crashes)."""
+        from ..roar.compile import Crashes, compile_spec
+        from ..roar.run import crash_setup
         if mode not in ("python", "abstract"):
             raise RoarError(f"compile mode must be 'python' or 'abstract', not {mode!r}")
-        key = (request, mode)
+        if crashes is not None and not isinstance(crashes, Crashes):
+            crashes = crash_setup([crashes] if isinstance(crashes, str) else crashes)
+        key = (request, mode, crashes or None)
         model = self._compiled.get(key)
         if model is None:
             reg = self.registry()
-            model = self._compiled[key] = compile_spec(self.ast, request, registry=reg, functional=mode)
+            model = self._compiled[key] = compile_spec(self.ast, request, registry=reg, functional=mode,
+                                                       crashes=crashes)
             self._spare = reg   # unused by any run yet: the next run takes it (the module runs once)
         return model
 
@@ -244,7 +249,8 @@ class AgentSpec:
 
     # -- running -----------------------------------------------------------------------
     def run(self, request: str, *, seed: int = 0, faults: Iterable[FaultLike] = (), max_steps: int = 100_000,
-            fair: bool = False, strict_faults: bool = False, scenario: Optional[PathLike] = None) -> "RunReport":
+            fair: bool = False, strict_faults: bool = False, scenario: Optional[PathLike] = None,
+            crashes: Iterable[Any] = ()) -> "RunReport":
         """Run the spec on ``request`` to quiescence, as ``roar-verify run`` does (or, with a
         ``scenario``, on the reference robot as ``roar-verify simulate`` does).
 
@@ -252,14 +258,20 @@ class AgentSpec:
         on the robot, scenario fault points too. A fault that matched no call is an error with
         ``strict_faults`` (the command line's behaviour); otherwise it is listed in
         ``RunReport.unused_faults``: a generated fault schedule may name calls a run never makes.
+        ``crashes`` are ``AGENT@STEP`` or ``AGENT@STEP-BACK`` (``--crash``; docs/semantics.md, Crashes).
         """
+        from ..roar.run import parse_crash
         texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
+        crashes = [parse_crash(c) for c in ([crashes] if isinstance(crashes, str) else crashes)]
         if scenario is not None:
+            if crashes:
+                raise RoarError("crashes (--crash) are for runs on the model; on the robot, faults are the "
+                                "scenario's fault points")
             return self._simulate(request, Path(scenario), seed, texts, max_steps, strict_faults)
         wanted = list(dict.fromkeys(parse_faults(texts)))
-        model = self.compile(request, "python")
-        res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self._run_registry(), fs, fair),
-                                    wanted, strict_faults)
+        model = self.compile(request, "python", crashes=crashes or None)
+        res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self._run_registry(), fs, fair,
+                                                          crashes), wanted, strict_faults)
         return RunReport(self.name, request, seed, tuple(texts), res, max_steps,
                          tuple(str(f) for f in unused), functional=self.functional)
 
@@ -294,9 +306,13 @@ class AgentSpec:
     # -- exploring ---------------------------------------------------------------------
     def explore(self, request: str, properties: Sequence[str] = ("deadlock", "livelock"), *,
                 never: Sequence[str] = (), progress: Sequence[str] = (), sequence_recipes: Sequence[str] = (),
-                budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None) -> "Exploration":
+                budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None,
+                crash: Sequence[str] = (), max_crashes: int = 1) -> "Exploration":
         """Explore every interleaving and every declared outcome of the functional layer, as a
-        job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property."""
+        job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property.
+        ``crash`` names agents that may crash and come back, at most ``max_crashes`` times in a
+        run (a job's [faults] table; docs/semantics.md, Crashes)."""
+        from ..roar.compile import Crashes
         from ..verify.jobs import Job, PropertySpec
         props = _properties(properties, never, ROAR_PROPERTIES)
         spec_path = self._file()
@@ -309,6 +325,7 @@ class AgentSpec:
         job = Job(path=spec_path, name=name or _job_name(self.name, request), model=None, props=ps,
                   budget=as_budget(budget), reduction=reduction, spec=spec_path, request=request,
                   functional=self.functional)
+        job.crashes = Crashes(tuple([crash] if isinstance(crash, str) else crash), max_crashes) if crash else None
         return _explore(job)
 
     def explore_on_robot(self, request: str, scenario: PathLike,
@@ -388,9 +405,10 @@ class AgentSpec:
 
 
 def _run_model(model: "CompiledModel", seed: int, max_steps: int, registry: Optional["Registry"], faults: list,
-               fair: bool) -> "RunResult":
+               fair: bool, crashes: list = ()) -> "RunResult":
     from ..roar.run import run_model
-    return run_model(model, seed=seed, max_steps=max_steps, registry=registry, faults=faults, fair=fair)
+    return run_model(model, seed=seed, max_steps=max_steps, registry=registry, faults=faults, fair=fair,
+                     crashes=crashes)
 
 
 _UNUSED = re.compile(r"^--fault (.*): no such call happened in this run")

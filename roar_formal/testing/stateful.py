@@ -526,9 +526,8 @@ class RoarMachine(RuleBasedStateMachine):
                 self.fail(f"exclusive-writes violated: {w[0]} is written by the where clauses of two live "
                           f"constraints: {' and '.join(w[1])}")
         if s.system.pairs:
-            pair = s.system.violates_sequence(self.state)
-            if pair:
-                self.fail(f"sequential-achievement violated in {pair.where}: a command of the subtree of "
-                          f"'{pair.b_text}' started before every command of the subtree of '{pair.a_text}' ended")
+            why = s.system.sequence_reason(self.state)
+            if why:
+                self.fail(f"sequential-achievement violated: {why}")
         if self.check_deadlock and self.quiescent and not self.final:
             self.fail("deadlock: nothing can move, but a request is not final or a recipe is still live")

@@ -166,7 +166,8 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     reg = load_registry(fn_path)
     spec_ast = load_spec(job.spec)
     fingerprint = spec_fingerprint(job.spec, spec_ast, fn_path)
-    model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract")
+    model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract",
+                         crashes=getattr(job, "crashes", None))   # [faults] crash (docs/semantics.md, Crashes)
     program, start, options, pairs = roar_setup(job, model)
     props = job.props
     never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \
@@ -195,11 +196,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
                                                  (lambda sid: never(states[sid])) if never is not None else None,
                                                  step_of)
             elif p == "sequential-achievement":
-                def bad(sid):
-                    pair = system.violates_sequence(states[sid])
-                    return (f"in {pair.where}, a command of the subtree of '{pair.b_text}' started before every "
-                            f"command of the subtree of '{pair.a_text}' ended") if pair else None
-                verdicts[p] = check_states(graph, p, bad)
+                verdicts[p] = check_states(graph, p, lambda sid: system.sequence_reason(states[sid]))
             elif p == "exclusive-writes":
                 def bad(sid):
                     w = system.shared_write(states[sid])
@@ -242,7 +239,7 @@ def mark_defaults(props, verdicts: dict) -> None:
 def roar_setup(job: Job, model) -> tuple:
     """(program, start context, options, sequential pairs) of a job on a compiled spec: weak
     fairness per agent, the property files' progress rules (or requests reaching a final state)."""
-    from ..roar.explore import PROGRESS_RULES, sequential_pairs
+    from ..roar.explore import PROGRESS_RULES, job_sequence_pairs
     program = model.program()
     start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
     start = program.start_context(start_d.start)
@@ -251,11 +248,7 @@ def roar_setup(job: Job, model) -> tuple:
                       canonical=job.canonical)
     pairs = []
     if "sequential-achievement" in props.check:
-        pairs = [p for p in sequential_pairs(model) if not props.sequence_recipes or p.where in props.sequence_recipes]
-        missing = set(props.sequence_recipes) - {p.where for p in sequential_pairs(model)}
-        if missing:
-            raise RoarError(f"{job.path}: [sequential-achievement] names recipes with no 'make A; make B' pair: "
-                            f"{', '.join(sorted(missing))}")
+        pairs = job_sequence_pairs(model, props.sequence_recipes, props.sequence_kept, str(job.path))
     return program, start, options, pairs
 
 
@@ -539,8 +532,11 @@ def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
     where = ({"spec": str(job.spec), "request": job.request,
               "functional": str(job.functional) if job.functional else None} if job.is_roar
              else {"model": str(job.model), "start": job.start})
+    if getattr(job, "crashes", None):   # the model was compiled with these crashes ([faults])
+        where["crash"], where["max_crashes"] = list(job.crashes.agents), job.crashes.bound
     if job.is_roar and getattr(result, "roar", None) is not None:   # the pairs of make; make the job checked (TCA reads them)
-        header_pairs = {"seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text] for p in result.roar[2].system.pairs]}
+        header_pairs = {"seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text, p.kept]
+                                      for p in result.roar[2].system.pairs]}
     else:
         header_pairs = {}
     robot = getattr(result, "robot", None)

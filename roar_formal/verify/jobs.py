@@ -42,6 +42,9 @@ class PropertySpec:
     fairness_given: bool = False
     never: list[tuple[str, Pos]] = field(default_factory=list)   # invariant: patterns no reachable state matches
     sequence_recipes: list[str] = field(default_factory=list)   # agent.task.recipe; empty: every recipe
+    # [sequential-achievement] kept: True (every recipe) or the agent.task.recipe names whose achieved
+    # sub-goals must still hold when a later one is achieved and when the recipe ends; False: none
+    sequence_kept: Any = False
     robot_never: list[tuple[str, Pos]] = field(default_factory=list)    # robot-invariant: conditions never true
     robot_always: list[tuple[str, Pos]] = field(default_factory=list)   # robot-invariant: conditions always true
     # in the spec's terms (roar/props.py Formula objects): jobs on a spec only
@@ -91,6 +94,7 @@ class Job:
     request: Optional[str] = None      # the request the spec is run on
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
     robot: Optional[RobotSetup] = None  # robot-backed: the reference robot is the functional layer
+    crashes: Any = None                 # [faults]: roar.compile.Crashes, the agents that may crash (None: none)
 
     @property
     def is_roar(self) -> bool:
@@ -227,13 +231,17 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
             spec.check.append("livelock")
     if "sequential-achievement" in d:
         sa = _typed(d, "sequential-achievement", dict, path, "a property file")
-        _expect_keys(sa, {"recipes"}, "[sequential-achievement]", path)
+        _expect_keys(sa, {"recipes", "kept"}, "[sequential-achievement]", path)
         if "recipes" in sa:
             for r in _typed(sa, "recipes", list, path, "[sequential-achievement]"):
                 if not isinstance(r, str) or r.count(".") != 2:
                     raise RoarError(f"[sequential-achievement] recipes are named 'agent.task.recipe', not {r!r}",
                                     Pos(str(path), _line_of(path, "recipes"), 1))
                 spec.sequence_recipes.append(r)
+        if "kept" in sa:
+            _sequence_kept(sa["kept"], spec, path)
+        if "sequential-achievement" not in spec.check:   # the table says how to check it: so it is checked
+            spec.check.append("sequential-achievement")
     if "invariant" in d:
         inv = _typed(d, "invariant", dict, path, "a property file")
         _expect_keys(inv, {"never", "always"}, "[invariant]", path)
@@ -302,6 +310,31 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
             spec.accept = _typed(dl, "accept", str, path, "[deadlock]")
     spec.sources.append(str(path))
     return spec
+
+
+def _sequence_kept(v, spec: PropertySpec, path: Path) -> None:
+    """``kept = true`` (every recipe) or ``kept = ["agent.task.recipe", ...]``: an achieved
+    sub-goal must still hold when a later one of its block is achieved and when its recipe ends."""
+    what = ("[sequential-achievement] kept is true (every recipe), false, or a list of recipes named "
+            "'agent.task.recipe' whose achieved sub-goals must not be undone")
+    if isinstance(v, bool):
+        if v:
+            spec.sequence_kept = True
+        return
+    if not isinstance(v, list):
+        shown = json.dumps(v) if isinstance(v, (str, int, float)) else "a table" if isinstance(v, dict) \
+            else f"a {type(v).__name__}"
+        raise RoarError(f"{what}, not {shown}", _value_pos(path, "kept"))
+    names = []
+    for r in v:
+        if not isinstance(r, str) or r.count(".") != 2 or not all(r.split(".")) or "\0" in r:
+            at = _string_pos(path, "kept", r) if isinstance(r, str) else _value_pos(path, "kept")
+            shown = json.dumps(r) if isinstance(r, (str, int, float, bool)) else f"a {type(r).__name__}"
+            raise RoarError(f"{what}, not {shown}", at)
+        names.append(r)
+    if spec.sequence_kept is not True:
+        spec.sequence_kept = list(spec.sequence_kept or []) + [r for r in names
+                                                               if r not in (spec.sequence_kept or [])]
 
 
 def _string_pos(path: Path, key: str, text: str) -> Pos:
@@ -381,11 +414,67 @@ def _robot_setup(d: dict, path: Path, base: Path) -> RobotSetup:
     return setup
 
 
+#: the largest number of crashes a job may ask for in one run (each one multiplies the states)
+MAX_CRASHES = 100
+
+
+def _faults_setup(d: dict, path: Path):
+    """The [faults] table (docs/checking.md): ``crash = ["agent", ...]`` names the agents that may
+    crash and come back, ``max_crashes`` how many crashes a run may hold in all (default 1). The
+    names are checked against the spec when it is compiled, at their place in this file."""
+    from ..roar.compile import Crashes
+    f = _typed(d, "faults", dict, path, "a job file")
+    _expect_keys(f, {"crash", "max_crashes"}, "[faults]", path)
+    names: list = []
+    where: list = []
+    if "crash" in f:
+        raw = f["crash"]
+        if not isinstance(raw, list) or not all(isinstance(x, str) and x and "\0" not in x for x in raw):
+            raise RoarError("[faults] crash is a list of agent names, such as crash = [\"ptu\"]",
+                            _value_pos(path, "crash"))
+        for x in raw:
+            if x in names:
+                raise RoarError(f"[faults] crash names agent {x!r} twice", _name_pos(path, "crash", x, 2))
+            names.append(x)
+            where.append(_name_pos(path, "crash", x))
+    bound = 1
+    if "max_crashes" in f:
+        v = f["max_crashes"]
+        if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_CRASHES:
+            shown = ("true" if v else "false") if isinstance(v, bool) else json.dumps(v) if isinstance(v, str) \
+                else repr(v) if isinstance(v, (int, float)) else f"a {type(v).__name__}"
+            raise RoarError(f"[faults] max_crashes is the number of crashes a run may hold, a whole number from 1 "
+                            f"to {MAX_CRASHES}, not {shown}", _value_pos(path, "max_crashes"))
+        bound = v
+        if not names:
+            raise RoarError("[faults] max_crashes without crash: name the agents that may crash "
+                            "(crash = [\"agent\"])", _value_pos(path, "max_crashes"))
+    return Crashes(tuple(names), bound, False, tuple(where)) if names else None
+
+
+def _name_pos(path: Path, key: str, name: str, nth: int = 1) -> Pos:
+    """Where the ``nth`` string ``"name"`` (quotes included, so that "pt" is not found in "ptu")
+    of the value of ``key`` starts, inside its quotes."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return Pos(str(path), 1, 1)
+    start = _line_of(path, key) - 1
+    seen = 0
+    for n in range(start, len(lines)):
+        for m in re.finditer(r'"((?:[^"\\]|\\.)*)"|\'([^\']*)\'', lines[n]):
+            if name in (m.group(1), m.group(2)):
+                seen += 1
+                if seen == nth:
+                    return Pos(str(path), n + 1, m.start() + 2)
+    return _value_pos(path, key)
+
+
 def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
     _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
-                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot"},
+                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot", "faults"},
                  "a job file", path)
     base = path.parent
     if "spec" in d:
@@ -402,6 +491,11 @@ def load_job(path: str | Path) -> Job:
             job.functional = (base / _typed(d, "functional", str, path, "a job file")).resolve()
         if "robot" in d:
             job.robot = _robot_setup(d, path, base)
+        if "faults" in d:
+            job.crashes = _faults_setup(d, path)
+            if job.crashes and job.robot is not None:
+                raise RoarError("[faults] crash is for a job on the model; on the robot, faults are the "
+                                "scenario's fault points ([robot] faults)", Pos(str(path), _line_of(path, "faults"), 1))
     else:
         if "robot" in d:
             raise RoarError("'robot' belongs to a job on a spec ('spec = ...'): the robot is the functional layer "
@@ -409,7 +503,7 @@ def load_job(path: str | Path) -> Job:
         if "model" not in d:
             raise RoarError("a job needs 'model = \"path/to/model.clf\"' or 'spec = \"path/to/spec.roar\"' "
                             "with a 'request'", Pos(str(path), 1, 1))
-        for k in ("request", "functional"):
+        for k in ("request", "functional", "faults"):
             if k in d:
                 raise RoarError(f"'{k}' belongs to a job on a spec ('spec = ...'), not on a .clf model",
                                 Pos(str(path), _line_of(path, k), 1))

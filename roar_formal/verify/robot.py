@@ -202,11 +202,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
                 verdicts[p] = spec_checks.decide(p, graph, ctx_of, (lambda sid: never(states[sid].ctx))
                                                  if never is not None else None, explorer.steps.__getitem__)
             elif p == "sequential-achievement":
-                def bad(sid):
-                    pair = system.violates_sequence(states[sid].ctx)
-                    return (f"in {pair.where}, a command of the subtree of '{pair.b_text}' started before every "
-                            f"command of the subtree of '{pair.a_text}' ended") if pair else None
-                verdicts[p] = check_states(graph, p, bad)
+                verdicts[p] = check_states(graph, p, lambda sid: system.sequence_reason(states[sid].ctx))
             elif p == "exclusive-writes":
                 def bad(sid):
                     w = system.shared_write(states[sid].ctx)
