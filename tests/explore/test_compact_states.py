@@ -4,6 +4,8 @@ against the plain search it replaces: the same graph, edge for edge."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from roar_formal.clf.context import FrozenContext
