@@ -21,7 +21,6 @@ from pathlib import Path
 import pytest
 
 from roar_formal.clf.state import canonical_key
-from roar_formal.cli import main
 from roar_formal.errors import RoarError
 from roar_formal.roar.compile import Crashes, compile_spec
 from roar_formal.roar.run import CrashAt, crash_setup, describe_ec, parse_crash, run_model
@@ -370,28 +369,16 @@ def test_run_crash_of_the_caller_aborts_its_make():
     assert replay_on_enumerator(rep.result) == len(rep.result.steps)
 
 
-def cli(capsys, *argv) -> tuple[int, str, str]:
-    code = 0
-    try:
-        main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def test_cli_run_crash(capsys, monkeypatch):
-    monkeypatch.setenv("COLUMNS", "400")
-    monkeypatch.setenv("NO_COLOR", "1")
-    code, out, err = cli(capsys, "run", SPEC, "-r", DONE, "--crash", "cam@21")
+def test_cli_run_crash(roar_cli):
+    code, out, err = roar_cli("run", SPEC, "-r", DONE, "--crash", "cam@21")
     assert code == 0, err
     assert re.search(r"^ +21 cam +cam crashed$", out, re.M) and re.search(r"^ +\d+ cam +cam back$", out, re.M)
-    code, out, err = cli(capsys, "run", SPEC, "-r", LOCKED, "--crash", "cam@21")
+    code, out, err = roar_cli("run", SPEC, "-r", LOCKED, "--crash", "cam@21")
     assert code == 1 and "unavailable: agent cam crashed" in out
     for bad, fragment in (("cam", "expected AGENT@STEP"), ("cam@0", "expected AGENT@STEP"),
                           ("cam@5-3", "expected AGENT@STEP"), ("foo@3", "unknown agent 'foo'"),
                           ("cam@500", "never crashed")):
-        code, out, err = cli(capsys, "run", SPEC, "-r", DONE, "--crash", bad)
+        code, out, err = roar_cli("run", SPEC, "-r", DONE, "--crash", bad)
         assert code == 2 and err.startswith("error: ") and fragment in err and "Traceback" not in err, (bad, err)
 
 
@@ -417,18 +404,18 @@ def test_crash_at_parses():
     ('[faults]\ncrashes = ["cam"]\n', "unknown key 'crashes' in [faults]", 4, 1),
     ('[faults]\nmax_crashes = 2\n', "max_crashes without crash", 4, 15),
 ])
-def test_bad_faults_are_located(tmp_path, capsys, faults, fragment, line, col):
+def test_bad_faults_are_located(tmp_path, roar_cli, faults, fragment, line, col):
     job = write_job(tmp_path, DONE, faults)
-    code, out, err = cli(capsys, "check", job)
+    code, out, err = roar_cli("check", job)
     assert code == 2, (out, err)
     assert err.startswith("error: ") and "Traceback" not in err, err
     assert f"{job}:{line}:{col}:" in err and fragment in err, err
 
 
-def test_faults_on_a_clf_model_job_are_refused(tmp_path, capsys):
+def test_faults_on_a_clf_model_job_are_refused(tmp_path, roar_cli):
     job = tmp_path / "clf.toml"
     job.write_text(f'model = "{ROOT / "models" / "philosophers" / "dl.clf"}"\n[faults]\ncrash = ["p1"]\n')
-    code, out, err = cli(capsys, "check", job)
+    code, out, err = roar_cli("check", job)
     assert code == 2 and f"{job}:2:1:" in err and "'faults' belongs to a job on a spec" in err, err
 
 
