@@ -24,8 +24,10 @@ def register(app: typer.Typer) -> None:
         request: Optional[str] = typer.Option(None, "--request", "-r",
                                               help="With a spec: the request to enforce."),
         prop: List[str] = typer.Option([], "--property", "-p", help="With a model or spec: a property to check "
-                                       "(deadlock, livelock, sequential-achievement, exclusive-writes); "
-                                       "repeatable or comma-separated. Default: deadlock and livelock."),
+                                       "(deadlock, livelock, sequential-achievement, exclusive-writes, "
+                                       "incompatible-tasks, mission-completion, mission-failure); "
+                                       "repeatable or comma-separated. Default: deadlock on a .clf program; "
+                                       "deadlock, mission-completion and mission-failure on a spec."),
         max_states: Optional[int] = typer.Option(None, "--max-states", help="Overrides every job's state bound."),
         max_seconds: Optional[float] = typer.Option(None, "--max-seconds", help="Overrides every job's time bound."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),

@@ -425,6 +425,9 @@ class View:
     agent_states: dict    # agent -> set of request states it handles
     tasks: dict           # (agent, task) -> set of 'go' / 'paused' (one per activation)
     events: frozenset = frozenset()   # on a step: ('starts'|'ends', owner, function) and ('sent', agent)
+    #: the live requests' committed tasks (only when asked for, see :func:`held_tasks`):
+    #: request id -> (agent, constraint text, tuple of task names)
+    held: Optional[dict] = None
 
 
 def step_events(model, step) -> frozenset:
@@ -458,7 +461,43 @@ def step_events(model, step) -> frozenset:
     return frozenset(out)
 
 
-def view_of(model, ctx) -> View:
+def held_tasks(model, ctx) -> dict:
+    """The task tree each live request has committed (4.3), read from its agent's mask: request id
+    -> (agent, constraint text, task names). A commitment appends, for its request, each committed
+    task followed by the tasks incompatible with it (the framework's ``with_incompat``); the committed
+    ones are read by skipping, after each, as many entries as the spec makes incompatible with it.
+    Entries of a request that failed, was aborted or is gone are not a commitment; a held ensure
+    (succeeded, still in force) keeps its tasks."""
+    from ..clf.terms import Const
+    from . import vocabulary as V
+    from .run import STATE_NAMES, list_items
+    h = V.head_name
+    bag = ctx.index.get(Const(V.RQ))
+    about = {q.request: model.csts.get(h(q.cst), ("", "?"))[1] for q in (map(V.rq, bag.items) if bag else ())}
+    bag = ctx.index.get(Const(V.RS))
+    final = {x.request for x in (map(V.rs, bag.items) if bag else ())
+             if STATE_NAMES.get(h(x.state)) in ("failure", "aborted")}   # a held ensure has succeeded
+    out = {}
+    bag = ctx.index.get(Const(V.MASK))
+    for mk in (map(V.mask, bag.items) if bag else ()):
+        agent = model.agents.get(h(mk.agent), h(mk.agent))
+        by_request: dict = {}
+        for e in list_items(mk.entries):
+            t, r = e.args
+            by_request.setdefault(V.unwrap(r), []).append(model.tasks.get(h(V.unwrap(t))))
+        for r, items in by_request.items():
+            if r in final or r not in about:
+                continue
+            committed, i = [], 0
+            while i < len(items) and items[i] is not None:
+                task = items[i][1]
+                committed.append(task)
+                i += 1 + len(model.incompatible.get((agent, task), ()))
+            out[r] = (agent, about[r], tuple(committed))
+    return out
+
+
+def view_of(model, ctx, held: bool = False) -> View:
     from ..clf.terms import Const
     from . import vocabulary as V
     from .run import STATE_NAMES, value_of
@@ -492,7 +531,7 @@ def view_of(model, ctx) -> View:
         t = model.tasks.get(h(a.task))
         if t is not None:
             tasks.setdefault(t, set()).add("paused" if a.inst in paused else "go")
-    return View(values, r0, ec, agent_states, tasks)
+    return View(values, r0, ec, agent_states, tasks, held=held_tasks(model, ctx) if held else None)
 
 
 def _event_text(e) -> str:
@@ -871,6 +910,71 @@ MISSION_COMPLETION = "eventually request R0 succeeded"
 MISSION_FAILURE = "always !request R0 failed"
 
 
+def incompatible_pairs(model, declared: list, where: str = "the job") -> dict:
+    """The pairs property ``incompatible-tasks`` checks: agent -> {frozenset({t, u}): how they are
+    incompatible}. ``declared`` ([incompatible-tasks] pairs: ((text, Pos), (text, Pos)) of
+    'agent::task' names) is checked against the spec's tasks; when empty, every pair the spec's
+    post-conditions make incompatible (4.3), and none is an error (a check of nothing)."""
+    derived = {(a, t, u) for (a, t), us in model.incompatible.items() for u in us}
+    out: dict = {}
+    if not declared:
+        if not derived:
+            raise RoarError(f"{where}: incompatible-tasks has nothing to check: no two tasks of one agent "
+                            "have contradicting post-conditions in this spec; name the tasks that must never "
+                            "be held together with [incompatible-tasks] pairs = [[\"agent::task\", "
+                            "\"agent::task\"]]")
+        for a, t, u in derived:
+            out.setdefault(a, {})[frozenset((t, u))] = "their post-conditions contradict"
+        return out
+    tasks = set(model.tasks.values())
+    agents = sorted({a for a, _t in tasks} | set(model.agents.values()))
+    for pair in declared:
+        names = []
+        for text, pos in pair:
+            a, _sep, t = text.partition("::")
+            if a not in agents:
+                raise RoarError(f"unknown agent '{a}'{did_you_mean(a, agents)}; the agents are: "
+                                f"{', '.join(agents)}", pos)
+            if (a, t) not in tasks:
+                own = sorted(x for (ag, x) in tasks if ag == a)
+                raise RoarError(f"agent '{a}' has no task '{t}'{did_you_mean(t, own)}; its tasks: "
+                                f"{', '.join(own) or 'none'}", pos)
+            names.append((a, t))
+        (a, t), (b, u) = names
+        if a != b:
+            raise RoarError(f"'{a}::{t}' and '{b}::{u}' belong to two agents: tasks are incompatible within "
+                            "one agent, which commits them (4.3)", pair[1][1])
+        if t == u:
+            raise RoarError(f"'{a}::{t}' is paired with itself: two requests holding one task is a "
+                            "concurrency issue the framework always resolves, not an incompatibility",
+                            pair[1][1])
+        out.setdefault(a, {})[frozenset((t, u))] = (
+            "their post-conditions contradict" if (a, t, u) in derived else
+            "declared incompatible; the spec's post-conditions do not contradict, so nothing masks one "
+            "while the other is held")
+    return out
+
+
+def incompatible_held(pairs: dict, held: dict) -> Optional[str]:
+    """Two live requests of one agent holding tasks of ``pairs`` (:func:`incompatible_pairs`), said
+    in the spec's terms, or None; ``held`` is :func:`held_tasks` of the state."""
+    by_agent: dict = {}
+    for r, (agent, text, tasks) in held.items():
+        by_agent.setdefault(agent, []).append((text, tasks))
+    for agent, known in pairs.items():
+        live = by_agent.get(agent, [])
+        for i, (c1, ts1) in enumerate(live):
+            for c2, ts2 in live[i + 1:]:
+                for t in ts1:
+                    for u in ts2:
+                        how = known.get(frozenset((t, u)))
+                        if how is not None and t != u:
+                            both = f"{agent} holds {t} for one live request ({c1}) and {u} for another ({c2}) at once"
+                            return f"{both}: {t} and {u} are {how}" if how.startswith("declared") else \
+                                f"{both}, although {how}"
+    return None
+
+
 class SpecChecks:
     """The properties of a job on a spec written in the spec's terms, bound to its compiled model:
     the [invariant] always/never predicates, the [temporal] formulas, mission-completion,
@@ -902,6 +1006,9 @@ class SpecChecks:
         self.completion = parse_formula(MISSION_COMPLETION).bind(model)
         self.failure = parse_formula(MISSION_FAILURE).bind(model)
         self.request_text = model.csts.get(model.request_cst, ("?", "?"))[1]
+        self.incompatible = incompatible_pairs(model, getattr(props, "incompatible_pairs", []),
+                                               props.sources[0] if props.sources else "the job") \
+            if "incompatible-tasks" in props.check else {}
         self._views: list = []
         self._key = None
         #: state id -> is it cut off without being the end of a run (robot-backed: the horizon)?
@@ -918,14 +1025,15 @@ class SpecChecks:
     @property
     def handles(self) -> set:
         """The property names decided here (besides 'invariant')."""
-        return {"mission-completion", "mission-failure"} | set(self.temporal)
+        return {"mission-completion", "mission-failure", "incompatible-tasks"} | set(self.temporal)
 
     def views(self, g, ctx_of) -> list:
         """The decoded states (cached while the same explorer grows)."""
         if self._key is not ctx_of:
             self._key, self._views = ctx_of, []
+        held = bool(self.incompatible)
         while len(self._views) < g.n_states:
-            self._views.append(view_of(self.model, ctx_of(len(self._views))))
+            self._views.append(view_of(self.model, ctx_of(len(self._views)), held))
         return self._views
 
     def values(self, fn, views) -> np.ndarray:
@@ -984,6 +1092,8 @@ class SpecChecks:
                         return f"a reachable state satisfies never {f.text!r}: {f.explain(v)}"
                 return None
             return check_states(g, p, why)
+        if p == "incompatible-tasks":
+            return check_states(g, p, lambda sid: incompatible_held(self.incompatible, views[sid].held))
         if p == "mission-failure":
             bad = self.values(self.failure.pf, views)
 

@@ -59,7 +59,7 @@ BudgetLike = Union[Budget, Mapping[str, Any], None]
 
 #: properties a job on a spec can check (docs/checking.md, "Jobs on a ROAR spec")
 ROAR_PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant",
-                   "mission-completion", "mission-failure")
+                   "mission-completion", "mission-failure", "incompatible-tasks")
 #: properties a job on a .clf model can check
 CLF_PROPERTIES = ("deadlock", "livelock", "invariant")
 
@@ -307,18 +307,27 @@ class AgentSpec:
     def explore(self, request: str, properties: Sequence[str] = ("deadlock", "livelock"), *,
                 never: Sequence[str] = (), progress: Sequence[str] = (), sequence_recipes: Sequence[str] = (),
                 budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None,
-                crash: Sequence[str] = (), max_crashes: int = 1) -> "Exploration":
+                crash: Sequence[str] = (), max_crashes: int = 1,
+                incompatible: Sequence[Sequence[str]] = ()) -> "Exploration":
         """Explore every interleaving and every declared outcome of the functional layer, as a
-        job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property.
+        job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property,
+        ``incompatible`` pairs of 'agent::task' names the ``incompatible-tasks`` property (no two
+        live requests hold them at once; without pairs it checks those the spec makes incompatible).
         ``crash`` names agents that may crash and come back, at most ``max_crashes`` times in a
         run (a job's [faults] table; docs/semantics.md, Crashes)."""
         from ..roar.compile import Crashes
         from ..verify.jobs import Job, PropertySpec
-        props = _properties(properties, never, ROAR_PROPERTIES)
+        wanted = list(properties) + (["incompatible-tasks"] if incompatible and "incompatible-tasks" not in properties
+                                     else [])
+        props = _properties(wanted, never, ROAR_PROPERTIES)
         spec_path = self._file()
         ps = PropertySpec(check=props, progress=list(progress), sequence_recipes=list(sequence_recipes))
         pos = _caller_pos()
         ps.never = [(p, pos) for p in never]
+        for pair in incompatible:
+            if isinstance(pair, str) or len(pair) != 2 or not all(isinstance(x, str) and "::" in x for x in pair):
+                raise RoarError(f"incompatible is a list of pairs of tasks named 'agent::task', not {pair!r}", pos)
+            ps.incompatible_pairs.append(((pair[0], pos), (pair[1], pos)))
         for r in sequence_recipes:
             if not isinstance(r, str) or r.count(".") != 2:
                 raise RoarError(f"sequence_recipes are named 'agent.task.recipe', not {r!r}", pos)

@@ -16,7 +16,8 @@ from ..errors import Pos, RoarError
 from ..explore.replay import ReplayResult
 from ..roar.compile import CompiledModel
 from ..roar.explore import PROGRESS_RULES
-from ..roar.props import MISSION_COMPLETION, MISSION_FAILURE, parse_formula, step_events, view_of
+from ..roar.props import (MISSION_COMPLETION, MISSION_FAILURE, held_tasks, incompatible_held,
+                          incompatible_pairs, parse_formula, step_events, view_of)
 
 __all__ = ["claim_groups", "confirm_claim", "trace_claim"]
 
@@ -38,6 +39,8 @@ def trace_claim(job, prop: str) -> dict:
     elif prop in props.temporal:
         claim.update(fairness="strong" if prop in props.temporal_strong else "weak",
                      formula=props.temporal[prop].text)
+    elif prop == "incompatible-tasks":   # the declared pairs; none: those the spec's post-conditions make
+        claim["incompatible"] = [[a, b] for (a, _pa), (b, _pb) in props.incompatible_pairs]
     elif prop == "invariant" and (props.spec_always or props.spec_never):
         claim.update(always=[f.text for f in props.spec_always], never=[f.text for f in props.spec_never])
     if claim and not job.is_roar:   # a .clf model's processes (a spec's are its agents)
@@ -62,6 +65,15 @@ def _texts(claim: dict, key: str, path) -> list[str]:
     v = claim.get(key, [])
     if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
         raise RoarError(f'expected "claim.{key}" in the trace header to be a list of strings', Pos(str(path), 1, 1))
+    return v
+
+
+def _pairs(claim: dict, path) -> list:
+    v = claim.get("incompatible")
+    if not isinstance(v, list) or not all(isinstance(x, list) and len(x) == 2 and all(isinstance(y, str) for y in x)
+                                          for x in v):
+        raise RoarError('expected "claim.incompatible" in the trace header to be a list of pairs of task names',
+                        Pos(str(path), 1, 1))
     return v
 
 
@@ -151,6 +163,12 @@ def _confirm_spec(claim: dict, prop, res: ReplayResult, k: Optional[int], m: Com
                 if hit:
                     return False, f"the cycle makes progress: {f.text!r} holds at step {i + 1}: not a livelock"
         return True, "the cycle is fair, returns to where it started and makes no progress: a livelock"
+    if "incompatible" in claim:
+        declared = [((a, None), (b, None)) for a, b in _pairs(claim, path)]
+        why = incompatible_held(incompatible_pairs(m, declared, "the trace's claim"), held_tasks(m, states[-1]))
+        if why:
+            return True, f"in the final state {why}"
+        return False, "in the final state no two live requests hold incompatible tasks on this model"
     if "always" in claim or "never" in claim:
         end = views[-1]
         for t in _texts(claim, "always", path):

@@ -21,9 +21,10 @@ from ..errors import Pos, RoarError
 from ..explore.search import Budget
 
 PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant",
-              "mission-completion", "mission-failure")
+              "mission-completion", "mission-failure", "incompatible-tasks")
 #: properties that read ROAR events or state: only for jobs on a spec
-ROAR_PROPERTIES = ("sequential-achievement", "exclusive-writes", "mission-completion", "mission-failure")
+ROAR_PROPERTIES = ("sequential-achievement", "exclusive-writes", "mission-completion", "mission-failure",
+                   "incompatible-tasks")
 #: what a job on a spec checks when nothing names a property (docs/checking.md)
 SPEC_DEFAULTS = ["deadlock", "mission-completion", "mission-failure"]
 STATUSES = ("holds", "violated")
@@ -54,6 +55,9 @@ class PropertySpec:
     temporal: dict = field(default_factory=dict)        # [temporal] name -> Formula (always/eventually/leads-to)
     temporal_strong: set = field(default_factory=set)   # [temporal] names decided under strong fairness
     defaulted: bool = False                             # nothing named a property: the spec defaults are checked
+    # [incompatible-tasks] pairs: ((text, Pos), (text, Pos)) of 'agent::task' names declared incompatible;
+    # empty: the pairs the spec's post-conditions make incompatible
+    incompatible_pairs: list = field(default_factory=list)
 
     @property
     def spec_terms(self) -> bool:
@@ -196,7 +200,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
     d = _load_toml(path)
     from ..roar.props import looks_like_spec, parse_formula
     _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant",
-                     "robot-invariant", "temporal"}, "a property file", path)
+                     "robot-invariant", "temporal", "incompatible-tasks"}, "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
@@ -242,6 +246,13 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
             _sequence_kept(sa["kept"], spec, path)
         if "sequential-achievement" not in spec.check:   # the table says how to check it: so it is checked
             spec.check.append("sequential-achievement")
+    if "incompatible-tasks" in d:
+        it = _typed(d, "incompatible-tasks", dict, path, "a property file")
+        _expect_keys(it, {"pairs"}, "[incompatible-tasks]", path)
+        if "pairs" in it:
+            _incompatible_pairs(it["pairs"], spec, path)
+        if "incompatible-tasks" not in spec.check:   # the table says how to check it: so it is checked
+            spec.check.append("incompatible-tasks")
     if "invariant" in d:
         inv = _typed(d, "invariant", dict, path, "a property file")
         _expect_keys(inv, {"never", "always"}, "[invariant]", path)
@@ -335,6 +346,30 @@ def _sequence_kept(v, spec: PropertySpec, path: Path) -> None:
     if spec.sequence_kept is not True:
         spec.sequence_kept = list(spec.sequence_kept or []) + [r for r in names
                                                                if r not in (spec.sequence_kept or [])]
+
+
+def _incompatible_pairs(v, spec: PropertySpec, path: Path) -> None:
+    """``pairs = [["gripper::grasp", "gripper::release"], ...]``: tasks the user declares must never
+    be held by two live requests at once (the names are checked against the spec when it is bound)."""
+    what = ("[incompatible-tasks] pairs is a list of pairs of tasks named 'agent::task', such as "
+            "[[\"gripper::grasp\", \"gripper::release\"]]")
+    if not isinstance(v, list) or not v:
+        shown = "an empty list" if v == [] else json.dumps(v) if isinstance(v, (str, int, float, bool)) \
+            else "a table" if isinstance(v, dict) else f"a {type(v).__name__}"
+        raise RoarError(f"{what}, not {shown}", _value_pos(path, "pairs"))
+    for pair in v:
+        if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(x, str) for x in pair)):
+            shown = json.dumps(pair) if isinstance(pair, (str, int, float, bool, list)) else "a table"
+            raise RoarError(f"{what}, not {shown}", _value_pos(path, "pairs"))
+        named = []
+        for x in pair:
+            at = _string_pos(path, "pairs", x)
+            agent, sep, task = x.partition("::")
+            if not sep or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", agent) or \
+                    not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", task):
+                raise RoarError(f"a task is named 'agent::task', not {json.dumps(x)}", at)
+            named.append((x, at))
+        spec.incompatible_pairs.append(tuple(named))
 
 
 def _string_pos(path: Path, key: str, text: str) -> Pos:
