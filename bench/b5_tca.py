@@ -38,6 +38,9 @@ from roar_formal.tca.model import load_model  # noqa: E402
 from roar_formal.tca.prover import prove  # noqa: E402
 from roar_formal.tca.schedule import sample_timing, simulate  # noqa: E402
 from roar_formal.tca.tasktree import build_tree  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "tca"))   # trace shapes shared with the tests
+from trace_shapes import deep_chain  # noqa: E402
 from roar_formal.tca.theorems import OBLIGATIONS  # noqa: E402
 from roar_formal.tca.trace_events import dumps, read_events  # noqa: E402
 from roar_formal.tca.unroll import unroll  # noqa: E402
@@ -113,24 +116,6 @@ print(json.dumps({"messages": len(r.tree.messages), "violations": len(r.violatio
 """
 
 
-def _deep_chain(n: int, declarations: int, seed: int = 0) -> str:
-    """A chain of n goals, each handled inside its parent, with random (mostly contradicting)
-    declarations between them."""
-    import json
-    rng = random.Random(seed)
-    out = []
-    for i in range(n):
-        out.append({"event": "constraint_sent", "time": 2 * i, "msg": f"m{i}", "kind": "goal",
-                    "parent": f"m{i - 1}" if i else None})
-        out.append({"event": "started", "time": 2 * i + 1, "msg": f"m{i}"})
-    for i in reversed(range(n)):
-        out.append({"event": "ended", "time": 4 * n - i, "msg": f"m{i}"})
-    for _ in range(declarations):
-        a, b = rng.randrange(n), rng.randrange(n)
-        out.append({"event": rng.choice(["seq_ach", "delay_planning", "precedes"]), "m1": f"m{a}", "m2": f"m{b}"})
-    return "".join(json.dumps(r) + "\n" for r in out)
-
-
 def _peaks(quick: bool) -> list[dict]:
     """tca-check's peak memory on 4,000-message traces, each in a fresh process."""
     import json
@@ -141,7 +126,7 @@ def _peaks(quick: bool) -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         chain = Path(tmp) / "chain.jsonl"
-        chain.write_text(_deep_chain(n, 50))
+        chain.write_text(deep_chain(n, 50))
         walk = Path(tmp) / "walk.jsonl"
         inst = unroll(load_model(AMBLER), {"arcs": 2, "steps": 50 if quick else 500})
         walk.write_text(dumps(simulate(inst, sample_timing(inst, random.Random(5)), True)), encoding="utf-8")

@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import random
 import subprocess
@@ -25,6 +24,7 @@ from roar_formal.tca.trace_events import parse_events
 from roar_formal.tca.unroll import MAX_MESSAGES, unroll
 
 from repo import ROOT
+from trace_shapes import deep_chain
 AMBLER = ROOT / "models" / "ambler" / "ambler.toml"
 
 
@@ -102,27 +102,9 @@ def test_conflicts_agree_with_z3_and_are_minimal(seed):
         live.discard(drop)
 
 
-def _deep_chain(n: int, declarations: int, seed: int = 0) -> str:
-    """A chain of n goals, each sent and handled inside its parent, achievement never observed;
-    random declarations between them, most of which contradict the nesting (conflicts as long
-    as the chain: the shape that made the SMT core minimisation quadratic)."""
-    rng = random.Random(seed)
-    out = []
-    for i in range(n):
-        out.append({"event": "constraint_sent", "time": 2 * i, "msg": f"m{i}", "kind": "goal",
-                    "parent": f"m{i - 1}" if i else None})
-        out.append({"event": "started", "time": 2 * i + 1, "msg": f"m{i}"})
-    for i in reversed(range(n)):
-        out.append({"event": "ended", "time": 4 * n - i, "msg": f"m{i}"})
-    for _ in range(declarations):
-        a, b = rng.randrange(n), rng.randrange(n)
-        out.append({"event": rng.choice(["seq_ach", "delay_planning", "precedes"]), "m1": f"m{a}", "m2": f"m{b}"})
-    return "".join(json.dumps(r) + "\n" for r in out)
-
-
 def test_long_conflicts_are_found_and_reported_up_to_the_limit(tmp_path):
     path = tmp_path / "deep.jsonl"
-    path.write_text(_deep_chain(300, 40, seed=3))
+    path.write_text(deep_chain(300, 40, seed=3))
     report = check_trace(path)
     together = [v for v in report.violations if v.source == "axioms together"]
     assert len(together) == MAX_CORES
@@ -137,7 +119,7 @@ def test_tca_check_on_1000_messages(tmp_path, shape):
     memory (target: far within 2 GB) is measured by bench/b5_tca.py, in a fresh process."""
     path = tmp_path / f"{shape}.jsonl"
     if shape == "deep-chain":
-        path.write_text(_deep_chain(1000, 50))
+        path.write_text(deep_chain(1000, 50))
     else:
         result = subprocess.run([sys.executable, "-m", "roar_formal.cli", "tca-simulate", str(AMBLER),
                                  "--size", "arcs=2", "--size", "steps=125", "--out", str(path)],
