@@ -36,13 +36,13 @@ DATA = Path(__file__).parent / "data"
 TOOLS = DATA / "seq_tools.py"
 
 
-def _n(t) -> Optional[str]:
+def head_name(t) -> Optional[str]:
     return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
 
 
-def _items(t) -> list:
+def vlist(t) -> list:
     out = []
-    while _n(t) == "vcons":
+    while head_name(t) == "vcons":
         out.append(t.args[0])
         t = t.args[1]
     return out
@@ -128,43 +128,43 @@ class SeqOracle:
         m = self.model
         known = {f.args[0] for f in self._facts(ctx, "o_of")}
         for f in prod:
-            if _n(f) in ("act", "chk") and f.args[0] not in known:
+            if head_name(f) in ("act", "chk") and f.args[0] not in known:
                 inst, req = f.args[0], f.args[1]
                 self._add(nxt, const("o_of", inst, req))
-                if _n(f) == "act":
-                    task = _n(f.args[2])
+                if head_name(f) == "act":
+                    task = head_name(f.args[2])
                 else:
-                    agent, tname, _r = m.recipes[_n(f.args[2])]
+                    agent, tname, _r = m.recipes[head_name(f.args[2])]
                     task = self.task_const[(agent, tname)]
                 for cur in self._facts(ctx, "o_cur"):
                     if cur.args[0] is req:
                         plan = next(g for g in self._facts(ctx, "o_plan") if g.args[0] is cur.args[1])
-                        if task in [_n(x.args[0]) for x in _items(plan.args[1])]:
+                        if task in [head_name(x.args[0]) for x in vlist(plan.args[1])]:
                             self._add(nxt, const("o_task", inst, cur.args[1], const(task)))
         if step.rule == "tasks_chosen":
             for f in prod:
-                if _n(f) == "hs" and _n(f.args[1]) == "h_write" and _n(f.args[1].args[0]) == "vsome":
+                if head_name(f) == "hs" and head_name(f.args[1]) == "h_write" and head_name(f.args[1].args[0]) == "vsome":
                     req, ts = f.args[0], f.args[1].args[0].args[0]
                     q = next(g for g in self._facts(ctx, "rq") if g.args[0] is req)
-                    if m.agents[_n(q.args[1])] not in self.plan_agents:
+                    if m.agents[head_name(q.args[1])] not in self.plan_agents:
                         continue
                     for cur in self._facts(nxt, "o_cur"):
                         if cur.args[0] is req:
                             nxt.remove_fact(cur, LIN)
-                    if len(_items(ts)) >= 2:
+                    if len(vlist(ts)) >= 2:
                         p = param_term(Param("oplan"))
                         nxt.add_fact(const("o_plan", p, ts), LIN)
                         nxt.add_fact(const("o_cur", req, p), LIN)
-        old = {f.args[0] for f in cons if _n(f) == "rq"}
+        old = {f.args[0] for f in cons if head_name(f) == "rq"}
         site = _site(step.rule)
         for f in prod:
-            if _n(f) == "rq" and f.args[0] not in old and _n(f.args[3]) is None:   # sent by an activation
+            if head_name(f) == "rq" and f.args[0] not in old and head_name(f.args[3]) is None:   # sent by an activation
                 self._add(nxt, const("o_up", f.args[0], f.args[3]))
                 if site in self.sites:
                     self._add(nxt, const("o_site", f.args[0], const(site), f.args[3]))
-        caller = next((g.args[0] for g in cons if _n(g) == "ctl"), None)
+        caller = next((g.args[0] for g in cons if head_name(g) == "ctl"), None)
         for f in prod:
-            if _n(f) == "pending" and caller is not None:
+            if head_name(f) == "pending" and caller is not None:
                 d = f.args[2]
                 self._add(nxt, const("o_up", d, caller))
                 self._add(nxt, const("o_run", d))
@@ -178,8 +178,8 @@ class SeqOracle:
                             if g.args[0] is node:
                                 self._add(nxt, const("o_tstart", g.args[1], g.args[2]))
         for f in cons:
-            if _n(f) in ("return", "callfail"):
-                d = f.args[1] if _n(f) == "return" else f.args[0]
+            if head_name(f) in ("return", "callfail"):
+                d = f.args[1] if head_name(f) == "return" else f.args[0]
                 for g in self._facts(nxt, "o_run"):
                     if g.args[0] is d:
                         nxt.remove_fact(g, LIN)
@@ -187,22 +187,22 @@ class SeqOracle:
             self._kept(ctx, nxt, prod, cons, step.rule)
 
     def _kept(self, ctx, nxt, prod, cons, rule) -> None:
-        before = {f.args[0]: _n(f.args[1]) for f in cons if _n(f) == "rs"}
+        before = {f.args[0]: head_name(f.args[1]) for f in cons if head_name(f) == "rs"}
         for f in prod:
-            if _n(f) != "rs" or _n(f.args[1]) != "s_success" or before.get(f.args[0]) == "s_success":
+            if head_name(f) != "rs" or head_name(f.args[1]) != "s_success" or before.get(f.args[0]) == "s_success":
                 continue
             for g in self._facts(nxt, "o_site"):
                 if g.args[0] is not f.args[0]:
                     continue
-                site, inst = _n(g.args[1]), g.args[2]
+                site, inst = head_name(g.args[1]), g.args[2]
                 self._add(nxt, const("o_got", g.args[1], inst))
                 for a, b, ta, tb in self.kept:
                     if b == site and nxt.count(const("o_got", const(a), inst), LIN) and not self._pred(ta, nxt):
                         self._add(nxt, const("o_bad", const(a), const(b)))
         if rule == "recipe_end":
             for f in cons:
-                if _n(f) == "act":
-                    for s in self.recipe_sites.get(_n(f.args[3]), ()):
+                if head_name(f) == "act":
+                    for s in self.recipe_sites.get(head_name(f.args[3]), ()):
                         if nxt.count(const("o_got", const(s), f.args[0]), LIN) and not self._pred(self.texts[s], nxt):
                             self._add(nxt, const("o_bad", const(s), const("end")))
 
@@ -231,27 +231,27 @@ class SeqOracle:
         lines = [self._ancestors(ctx, d) for d in running]
         roots = {}   # (site, inst) -> request
         for g in self._facts(ctx, "o_site"):
-            roots[(_n(g.args[1]), g.args[2])] = g.args[0]
+            roots[(head_name(g.args[1]), g.args[2])] = g.args[0]
         for g in self._facts(ctx, "o_bstart"):
-            b, inst = _n(g.args[0]), g.args[1]
+            b, inst = head_name(g.args[0]), g.args[1]
             for a, bb, ta, tb in self.seq:
                 root = roots.get((a, inst))
                 if bb == b and root is not None and any(("req", root) in line for line in lines):
                     out.append(("seq", ta, tb))
         tasks = {}
         for g in self._facts(ctx, "o_task"):
-            tasks.setdefault((g.args[1], _n(g.args[2])), []).append(g.args[0])
+            tasks.setdefault((g.args[1], head_name(g.args[2])), []).append(g.args[0])
         for g in self._facts(ctx, "o_tstart"):
-            p, t = g.args[0], _n(g.args[1])
+            p, t = g.args[0], head_name(g.args[1])
             plan = next(x for x in self._facts(ctx, "o_plan") if x.args[0] is p)
-            ts = [_n(x.args[0]) for x in _items(plan.args[1])]
+            ts = [head_name(x.args[0]) for x in vlist(plan.args[1])]
             k = ts.index(t)
             if k > 0:
                 firsts = tasks.get((p, ts[k - 1]), [])
                 if any(("act", i) in line for line in lines for i in firsts):
                     out.append(("plan", self.model.tasks[ts[k - 1]][1], self.model.tasks[t][1]))
         for g in self._facts(ctx, "o_bad"):
-            a, b = _n(g.args[0]), _n(g.args[1])
+            a, b = head_name(g.args[0]), head_name(g.args[1])
             out.append(("kept", self.texts[a], self.texts.get(b, "end")))
         return out
 

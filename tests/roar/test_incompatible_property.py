@@ -12,7 +12,6 @@ nothing beyond the engine.
 from __future__ import annotations
 
 import json
-from collections import deque
 from pathlib import Path
 from typing import Optional
 
@@ -20,7 +19,7 @@ import pytest
 
 from roar_formal.clf.rules import LIN
 from roar_formal.clf.state import canonical_key
-from roar_formal.clf.terms import Const, Root, const
+from roar_formal.clf.terms import Const, const
 from roar_formal.errors import RoarError
 from roar_formal.roar.compile import compile_spec
 from roar_formal.roar.spec import load_spec
@@ -28,23 +27,13 @@ from roar_formal.testing.api import load
 from roar_formal.verify.check import run_job
 from roar_formal.verify.jobs import load_job
 
+from .seq_oracle import head_name, vlist
+
 DATA = Path(__file__).parent / "data"
 REQUEST = "boss::done == true"
 
 
 # ------------------------------------------------------------------ the oracle
-
-
-def _n(t) -> Optional[str]:
-    return t.head.name if type(t) is Root and isinstance(t.head, Const) else None
-
-
-def _items(t) -> list:
-    out = []
-    while _n(t) == "vcons":
-        out.append(t.args[0])
-        t = t.args[1]
-    return out
 
 
 def _facts(ctx, fam: str) -> list:
@@ -88,10 +77,10 @@ class Oracle:
 
     def grow(self, nxt, step) -> None:
         for _m, f in step.produced:
-            if _n(f) != "hs" or _n(f.args[1]) != "h_dec":
+            if head_name(f) != "hs" or head_name(f.args[1]) != "h_dec":
                 continue
             d = f.args[1].args[0]
-            if _n(d) not in ("d_plan", "d_guard"):
+            if head_name(d) not in ("d_plan", "d_guard"):
                 continue
             r = f.args[0]
             for old in _facts(nxt, "o_commit"):
@@ -101,17 +90,17 @@ class Oracle:
 
     def held(self, ctx) -> list:
         """(agent, request, task names) of every request holding its last decision's tasks."""
-        gone = {f.args[0] for f in _facts(ctx, "rs") if _n(f.args[1]) in ("s_failure", "s_aborted")}
-        live = {f.args[0]: self.model.agents[_n(f.args[1])] for f in _facts(ctx, "rq")}
+        gone = {f.args[0] for f in _facts(ctx, "rs") if head_name(f.args[1]) in ("s_failure", "s_aborted")}
+        live = {f.args[0]: self.model.agents[head_name(f.args[1])] for f in _facts(ctx, "rq")}
         in_mask = set()
         for mk in _facts(ctx, "mask"):
-            for e in _items(mk.args[1]):
+            for e in vlist(mk.args[1]):
                 in_mask.add(e.args[1].args[0])
         out = []
         for f in _facts(ctx, "o_commit"):
             r = f.args[0]
             if r in live and r not in gone and r in in_mask:
-                tasks = [self.task_of[_n(x.args[0])][1] for x in _items(f.args[1])]
+                tasks = [self.task_of[head_name(x.args[0])][1] for x in vlist(f.args[1])]
                 out.append((live[r], r, tasks))
                 self.held_seen.update((live[r], t) for t in tasks)
         return out
