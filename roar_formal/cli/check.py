@@ -28,6 +28,11 @@ def register(app: typer.Typer) -> None:
                                        "incompatible-tasks, mission-completion, mission-failure); "
                                        "repeatable or comma-separated. Default: deadlock on a .clf program; "
                                        "deadlock, mission-completion and mission-failure on a spec."),
+        time: Optional[str] = typer.Option(None, "--time", help="With a spec: 'untimed' (default) or 'timed' "
+                                           "(the periods of wait, assert and ensure on a discrete clock; "
+                                           "docs/semantics.md, Time)."),
+        wait_timeout: Optional[int] = typer.Option(None, "--wait-timeout", help="With a spec, timed: a wait with "
+                                                   "a period gives up after this many milliseconds."),
         max_states: Optional[int] = typer.Option(None, "--max-states", help="Overrides every job's state bound."),
         max_seconds: Optional[float] = typer.Option(None, "--max-seconds", help="Overrides every job's time bound."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),
@@ -71,7 +76,7 @@ def register(app: typer.Typer) -> None:
             if folder is not None:   # checked before any work starts
                 check_output_folder(folder, opt, list(paths))
         # every job file is checked before anything runs
-        jobs = load_jobs(paths, request=request, properties=props)
+        jobs = load_jobs(paths, request=request, properties=props, time=time, wait_timeout=wait_timeout)
         files = [j.path for j in jobs if not is_model_path(j.path)]
         for job in jobs:   # command-line bounds override the jobs'
             if max_states is not None:

@@ -30,6 +30,10 @@ def register(app: typer.Typer) -> None:
                                              "Its pending constraints fail with an availability entry. Repeatable."),
         functional: Optional[Path] = typer.Option(None, "--functional",
                                                   help="Functional-layer module (default: SPEC.py next to the spec)."),
+        time: str = typer.Option("untimed", "--time", help="'untimed' (default) or 'timed': model the periods of "
+                                 "wait, assert and ensure with a discrete clock (docs/semantics.md, Time)."),
+        wait_timeout: Optional[int] = typer.Option(None, "--wait-timeout", help="Timed only: a wait with a period "
+                                                   "gives up after this many milliseconds (a local failure)."),
         max_steps: int = typer.Option(100_000, "--max-steps", help="Stop after this many CLF steps."),
         trace: Optional[Path] = typer.Option(None, "--trace", help="Write the JSON Lines trace here."),
         fair: bool = typer.Option(False, "--fair", help="Fair round-robin scheduling instead of seeded random."),
@@ -55,10 +59,11 @@ def register(app: typer.Typer) -> None:
             for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
                 if path is not None:
                     check_output_file(path, option, [Path(f) for f in spec_files(spec_obj.ast)] + [Path(spec)])
-        spec_obj.compile(request, "python", crashes=crashes or None)   # a bad request is reported before anything is printed
+        spec_obj.compile(request, "python", crashes=crashes or None, time=time,   # a bad request (or time)
+                         wait_timeout=wait_timeout)                                # is reported before anything is printed
         console = make_console()
         report = spec_obj.run(request, seed=seed, faults=faults, max_steps=max_steps, fair=fair, strict_faults=True,
-                              crashes=crashes)
+                              crashes=crashes, time=time, wait_timeout=wait_timeout)
         if not as_json:
             show(console, report.header_lines())
             show(console, report.event_lines(verbose))   # the one step table of run, simulate and replay
@@ -86,6 +91,9 @@ def register(app: typer.Typer) -> None:
         request: str = typer.Option(..., "--request", "-r", help="The constraint to enforce."),
         output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the CLF program here (default: stdout)."),
         functional: Optional[Path] = typer.Option(None, "--functional", help="Functional-layer module (for outcomes)."),
+        time: str = typer.Option("untimed", "--time", help="'untimed' (default) or 'timed' (docs/semantics.md, Time)."),
+        wait_timeout: Optional[int] = typer.Option(None, "--wait-timeout",
+                                                   help="Timed only: a wait with a period gives up after this many ms."),
     ) -> None:
         """Print the CLF program a spec and a request compile to (framework included).
 
@@ -96,7 +104,7 @@ def register(app: typer.Typer) -> None:
         from ..roar.ast import walk
         spec_obj = load_spec(spec, functional=functional)
         spec_ast = spec_obj.ast
-        model = spec_obj.compile(request, "abstract")
+        model = spec_obj.compile(request, "abstract", time=time, wait_timeout=wait_timeout)
         if output is None:
             sys.stdout.write(model.text)
         else:

@@ -29,6 +29,7 @@ variables become earlier sites that push their result on the recipe's locals.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -45,7 +46,7 @@ from .functional import DEFAULT_OUTCOMES, BindingError, Outcome, Registry
 from .incompatible import incompatible_tasks
 from .pretty import format_expr, format_stmt
 
-__all__ = ["compile_spec", "CompiledModel", "Site", "Crashes", "CRASH_RULES"]
+__all__ = ["compile_spec", "CompiledModel", "Site", "Crashes", "CRASH_RULES", "Timing", "TIME_MODES", "timing_of"]
 
 _OPS = {"==": "o_eq", "!=": "o_ne", "<": "o_lt", "<=": "o_le", ">": "o_gt", ">=": "o_ge",
         "+": "o_add", "-": "o_sub", "*": "o_mul", "&&": "o_and", "||": "o_or"}
@@ -155,6 +156,113 @@ crash_stop_end_block : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o ce
 """
 
 
+#: the fairness group of the steps of time (the tick, wakes, re-checks that find nothing to do)
+TIME_GROUP = "the clock"
+
+#: the longest cycle of the clock (in ticks, plus one): each tick can be a state of its own
+MAX_CYCLE = 1001
+
+#: the time modes of a job or a run (docs/semantics.md, "Time")
+TIME_MODES = ("untimed", "timed")
+
+#: the declarations and rules of the discrete clock, added only to a spec compiled in timed mode
+#: (docs/semantics.md, "Time"): an untimed model is, to the byte, the model without them
+TIME_TEXT = """
+% time (opt-in, docs/semantics.md "Time"): a discrete clock. One tick is the greatest common
+% divisor of the spec's periods; the clock counts ticks modulo a cycle longer than the longest
+% period, so a deadline (a tick number) is never ambiguous. `tmrs L` lists, sorted, the ticks at
+% which something is due (a sleeping wait or assert, a held ensure to re-check); the clock
+% advances only while something is due and nothing is due now (the due steps are urgent), and it
+% goes back to 0 when nothing waits on time any more (only differences of ticks matter).
+clock : number -> type.
+tmrs : val -> type.
+tnext : number -> number -> type.            % compiled: the next tick of the cycle
+tafter : number -> number -> number -> type. % compiled: tafter K T D: K ticks after tick T is tick D
+eperiod : cst -> number -> type.             % compiled: the period (ticks) of an ensured constraint
+m_sleep : number -> mode.                    % a wait or an assert sleeps until tick D
+spoll : site -> number -> site.              % site S polled again, with K polls left before its timeout
+h_heldt : number -> phase.                   % a held ensure, re-checked at tick D
+tm_ins : number -> val -> val -> type.
+tmi_at : bool -> number -> number -> val -> val -> type.
+tmi_nil : tm_ins D vnil (vcons (vnum D) vnil).
+tmi_cons : tm_ins D (vcons (vnum X) L) R <- nlt X D B <- tmi_at B D X L R.
+tmia_f : tmi_at ff D X L (vcons (vnum D) (vcons (vnum X) L)).
+tmia_t : tmi_at tt D X L (vcons (vnum X) R) <- tm_ins D L R.
+tm_rm : number -> val -> val -> type.
+tmr_at : bool -> number -> number -> val -> val -> type.
+tmr_cons : tm_rm D (vcons (vnum X) L) R <- neqb X D B <- tmr_at B D X L R.
+tmra_t : tmr_at tt _ _ L L.
+tmra_f : tmr_at ff D X L (vcons (vnum X) R) <- tm_rm D L R.
+tm_free : number -> val -> type.             % nothing is due at tick T
+tmf_nil : tm_free _ vnil.
+tmf_cons : tm_free T (vcons (vnum X) L) <- num_ne X T <- tm_free T L.
+clk_norm : val -> number -> number -> type.  % the clock once the timers are L: 0 when none is left
+cn_nil : clk_norm vnil _ 0.
+cn_cons : clk_norm (vcons _ _) T T.
+
+% the clock advances (its own fairness group: time passes in every fair run)
+tick : clock T -o tmrs (vcons X L) -o !tm_free T (vcons X L) -o !tnext T T1 -o {clock T1 * tmrs (vcons X L)}.
+% a sleeping wait or assert is due: it evaluates its condition again (its statement's rules)
+wake : ctl I (m_sleep D) C E -o clock D -o tmrs L -o !tm_rm D L L1 -o !clk_norm L1 D T1
+        -o {ctl I m_run C E * clock T1 * tmrs L1}.
+kill_sleep : kill I K -o alive I -o rstat I _ -o ctl I (m_sleep D) _ _ -o act I R T Rc N -o !endcode Rc C
+        -o clock T0 -o tmrs L -o !tm_rm D L L1 -o !clk_norm L1 T0 T1
+        -o {rstat I go * ending I K * ctl I m_run C vnil * act I R T Rc N * clock T1 * tmrs L1}.
+% a held ensure of a periodic constraint is re-checked at its period (compiled: ensure_check_cN,
+% ensure_broken_cN); it is armed when it becomes held
+held_arm : hs R h_held EC F Pl W -o rq R A C J k_ensure -o !eperiod C P -o clock T -o !tafter P T D
+        -o tmrs L -o !tm_ins D L L1
+        -o {hs R (h_heldt D) EC F Pl W * rq R A C J k_ensure * clock T * tmrs L1}.
+aborted_held : abortreq R -o hs R (h_heldt D) _ _ Pl _ -o rs R _ -o rq R A _ _ _ -o ppz R _ -o mask A M -o !mrm M Pl M1
+        -o clock T -o tmrs L -o !tm_rm D L L1 -o !clk_norm L1 T T1
+        -o {mask A M1 * clock T1 * tmrs L1}.
+"""
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The time abstraction a spec is compiled with (docs/semantics.md, "Time"): ``mode``
+    "untimed" (no clock: the model of the sections before it, to the byte) or "timed" (a discrete
+    clock; the periods of wait, assert and ensure are modelled). ``wait_timeout`` (ms, timed
+    only): a wait with a period whose condition was still false at its last poll at or after that
+    long fails with a timeout. ``where`` holds the positions in the job file of the mode and the
+    timeout (for errors), or None."""
+
+    mode: str = "untimed"
+    wait_timeout: Optional[int] = None
+    where: tuple = ()
+
+    def __bool__(self) -> bool:
+        return self.mode == "timed"
+
+    def header(self) -> dict:
+        """What a trace header records (replay recompiles the same model from it)."""
+        return {"time": self.mode, **({"wait_timeout": self.wait_timeout} if self.wait_timeout is not None else {})}
+
+
+def timing_of(value) -> Optional[Timing]:
+    """A Timing from None, a mode name or a Timing; None when untimed."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        if value not in TIME_MODES:
+            raise RoarError(f"time must be one of {', '.join(TIME_MODES)}, not {value!r}")
+        value = Timing(value)
+    if not isinstance(value, Timing):
+        raise RoarError(f"time must be one of {', '.join(TIME_MODES)} or a Timing, not {value!r}")
+    if value.mode not in TIME_MODES:
+        raise RoarError(f"time must be one of {', '.join(TIME_MODES)}, not {value.mode!r}",
+                        value.where[0] if value.where else None)
+    t = value.wait_timeout
+    if t is not None and (isinstance(t, bool) or not isinstance(t, int) or t < 1):
+        raise RoarError(f"wait_timeout is a whole number of milliseconds, at least 1, not {t!r}",
+                        value.where[1] if len(value.where) > 1 else None)
+    if t is not None and value.mode != "timed":
+        raise RoarError("wait_timeout needs the timed mode (time = \"timed\"): an untimed wait never times out",
+                        value.where[1] if len(value.where) > 1 else None)
+    return value if value else None
+
+
 @dataclass(frozen=True)
 class Crashes:
     """Agents that may crash and come back (docs/semantics.md, "Crashes"): opt-in, per job
@@ -226,6 +334,9 @@ class CompiledModel:
     # (with crashes, also the crash and comeback rules -> their own groups: neither is a step of an agent)
     crashes: Optional[Crashes] = None   # the agents that may crash (None: no faults)
     epochs: dict[str, int] = field(default_factory=dict)          # epoch sentinel task -> crashes so far
+    timing: Optional[Timing] = None     # timed mode (None: untimed; docs/semantics.md, Time)
+    tick_ms: Optional[int] = None       # timed, with a clock: one tick in ms (the gcd of the periods)
+    cycle: Optional[int] = None         # ... the clock counts ticks modulo this
 
     def program(self):
         """The CLF program (cached)."""
@@ -283,8 +394,16 @@ class _Ctx:
 
 class _Compiler:
     def __init__(self, checked: CheckedSpec, registry: Optional[Registry], functional: str,
-                 crashes: Optional[Crashes] = None):
+                 crashes: Optional[Crashes] = None, timing: Optional[Timing] = None):
         spec = checked.spec
+        self.timing = timing if timing else None
+        self.clock = False                        # timed mode and the spec writes a period
+        self.tick_ms, self.cycle = 1, 1
+        self.periods: set[int] = set()            # periods (ticks) something sleeps for
+        self.eperiods: dict[str, int] = {}        # ensured constraint -> its period (ticks), the shortest
+        self.timeouts: dict[str, str] = {}        # wait site -> its timeout site
+        self.time_steps: set[str] = set()          # compiled rules that are steps of time (TIME_GROUP)
+        self.division_sites: Optional[list] = None
         self.crashes = crashes if crashes else None
         self.crash_agents: set[str] = set(crashes.agents) if crashes else set()
         self.checker_sites: set[str] = set()      # calls hoisted in a recipe's pre-condition check
@@ -582,6 +701,7 @@ class _Compiler:
             c = st.constraint
             site_kw["cst"] = self.cst_for(ag, c.expr, c.target(ag.name))
         s = self.site(kind_name or kind, ag, task.name, r.name, st.pos, text, **site_kw)
+        division_sites = None
         E = cx.envpat()
         head = f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go"
         if isinstance(st, a.Set):
@@ -607,6 +727,9 @@ class _Compiler:
                               f"  -o rq R Ar Cr I Kr\n"
                               f"  -o {{ctl I m_run C E * rstat I go * act I R0 T0 Rc0 N * abortreq R"
                               f" * rq R Ar Cr irel Kr}}.")
+        elif self.ticks_of(st) is not None:   # timed mode: a wait or an assert with a period
+            self.timed_wait(st, s, cx, kind)
+            division_sites = self.division_sites
         else:  # wait, assert
             cond = self.pexp(st.cond, cx)
             prem, outs = self.premises(cx)
@@ -636,7 +759,7 @@ class _Compiler:
                     f"{s}_wake : ctl I (m_block Old) (ccons {s} C) E{wprem}\n"
                     f"  -o !val_eq Old {self._list(list(fresh.values()))} ff\n"
                     f"  -o {{ctl I m_run (ccons {s} C) E{wouts}}}.")
-        self.division_failures(st, s, cx, kind)
+        self.division_failures(st, s, cx, kind, division_sites)
         for _ in range(cx.pushed):
             env.pop(0)
         if isinstance(st, a.Let):
@@ -682,7 +805,131 @@ class _Compiler:
             self.predicates[key] = self.predicates[p]
             self.hyp_keys[key] = (p, hyps)
 
-    def division_failures(self, st: a.Stmt, s: str, cx: _Ctx, kind: str) -> None:
+    # ------------------------------------------------------------ time (opt-in)
+    def setup_clock(self) -> None:
+        """Timed mode: the tick (the gcd of the periods written, in ms) and the cycle of the clock
+        (longer than the longest period, in ticks). A period must be a literal number of
+        milliseconds, at least 1 (located errors). A spec without a period has no clock."""
+        if not self.timing:
+            return
+        found = []
+        for ag in self.spec.agents:
+            for t in ag.tasks:
+                for r in t.recipes:
+                    for st in list(r.body) + list(r.end):
+                        if isinstance(st, (a.Wait, a.Assert, a.Ensure)) and st.period is not None:
+                            e = st.period
+                            if not isinstance(e, a.IntLit):
+                                raise UnsupportedError(
+                                    f"in the timed mode a period must be a literal number of milliseconds, "
+                                    f"not '{format_expr(e)}'", e.pos)
+                            if e.value < 1:
+                                raise RoarError(f"a period is at least 1 ms, not {e.value}", e.pos)
+                            found.append((e.value, e.pos))
+        if not found:
+            return
+        self.tick_ms = math.gcd(*(v for v, _pos in found))
+        longest, where = max(found, key=lambda vp: vp[0])
+        self.cycle = longest // self.tick_ms + 1
+        if self.cycle > MAX_CYCLE:
+            raise RoarError(f"the timed mode's clock would count {self.cycle - 1:,} ticks of {self.tick_ms} ms for "
+                            f"this period of {longest} ms (the tick is the greatest common divisor of the spec's "
+                            f"periods); at most {MAX_CYCLE - 1:,}: write periods with a larger common divisor",
+                            where)
+        self.clock = True
+        self.model.tick_ms, self.model.cycle = self.tick_ms, self.cycle
+
+    def ticks_of(self, st) -> Optional[int]:
+        """The period of a statement in ticks (timed mode, with a clock), or None."""
+        if not self.clock or getattr(st, "period", None) is None:
+            return None
+        return st.period.value // self.tick_ms
+
+    def sleep(self, ticks: int, again: str, outs: str) -> tuple[str, str]:
+        """Premises and outputs of going to sleep for ``ticks`` (the code ``again`` runs at the wake)."""
+        self.periods.add(ticks)
+        return (f" -o clock Tk -o !tafter {ticks} Tk Dk -o tmrs Lk -o !tm_ins Dk Lk Lk1",
+                f"ctl I (m_sleep Dk) {again} E * rstat I go{outs} * clock Tk * tmrs Lk1")
+
+    def timed_wait(self, st, s: str, cx: _Ctx, kind: str) -> None:
+        """A wait or an assert with a period, in timed mode (docs/semantics.md, "Time").
+
+        wait: evaluated when reached; when false, it sleeps for its period and is evaluated again
+        at the wake (its calls and task runs made again first). With a timeout of T ms, the poll
+        at or after T (the K-th, K = ceil(T / period)) that finds it false fails the recipe
+        locally, at a site of kind ``timeout`` (the error context's entry says so): the polls left
+        are counted in the code (``spoll S K``). assert: it sleeps for its period when reached and
+        is evaluated at the wake (``spoll S 0``), failing the recipe if false."""
+        E = cx.envpat()
+        ticks = self.ticks_of(st)
+        cond = self.pexp(st.cond, cx)
+        prem, outs = self.premises(cx)
+
+        def code(last: str) -> str:
+            out = f"(ccons {last} C)"
+            for h in reversed(cx.hoisted):
+                out = f"(ccons {h} {out})"
+            return out
+        if kind == "assert":
+            polled = f"(spoll {s} 0)"
+            sp, so = self.sleep(ticks, code(polled), "")
+            self.rules.append(f"{s}_sleep : ctl I m_run (ccons {s} C) {E} -o rstat I go{sp}\n  -o {{{so}}}.")
+            self.rules.append(f"{s} : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
+                              f" -o !peval vnil {E} vnil {cond} (vbool tt)\n  -o {{ctl I m_run C E * rstat I go{outs}}}.")
+            self.rules.append(f"{s}_false : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
+                              f" -o !peval vnil {E} vnil {cond} (vbool ff) -o act I R0 T0 Rc0 N\n"
+                              f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N"
+                              f" * kill I (k_local {s}){outs}}}.")
+            self.division_sites = [polled]
+            return
+        timeout = self.timing.wait_timeout
+        polls = -(-timeout // st.period.value) if timeout is not None else 0   # 0: no timeout
+        self.rules.append(f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
+                          f" -o !peval vnil {E} vnil {cond} (vbool tt)\n  -o {{ctl I m_run C E * rstat I go{outs}}}.")
+        sp, so = self.sleep(ticks, code(f"(spoll {s} {polls})"), outs)
+        self.rules.append(f"{s}_false : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
+                          f" -o !peval vnil {E} vnil {cond} (vbool ff){sp}\n  -o {{{so}}}.")
+        polled = f"(spoll {s} Kp)" if polls else f"(spoll {s} 0)"
+        self.division_sites = [s, polled]
+        self.rules.append(f"{s}_poll : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
+                          f" -o !peval vnil {E} vnil {cond} (vbool tt)\n  -o {{ctl I m_run C E * rstat I go{outs}}}.")
+        # a poll that finds the condition false is a step of time, not of the agent (its own
+        # fairness group: an agent polling for ever does not hide its other steps from fairness)
+        self.time_steps.add(f"{s}_poll_false")
+        if not polls:
+            sp, so = self.sleep(ticks, code(polled), outs)
+            self.rules.append(f"{s}_poll_false : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
+                              f" -o !peval vnil {E} vnil {cond} (vbool ff){sp}\n  -o {{{so}}}.")
+            return
+        sp, so = self.sleep(ticks, code(f"(spoll {s} Kp1)"), outs)
+        self.rules.append(f"{s}_poll_false : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
+                          f" -o !peval vnil {E} vnil {cond} (vbool ff) -o !num_lt 1 Kp -o !num_sub Kp 1 Kp1{sp}\n"
+                          f"  -o {{{so}}}.")
+        site = self.model.sites[s]
+        where = self.site("timeout", cx.agent, cx.task, cx.recipe, st.pos,
+                          f"timeout: {site.text} did not hold within {timeout} ms "
+                          f"({polls} poll{'s' if polls > 1 else ''} every {st.period.value} ms)")
+        self.timeouts[s] = where
+        self.rules.append(f"{s}_timeout : ctl I m_run (ccons (spoll {s} 1) C) {E} -o rstat I go{prem}"
+                          f" -o !peval vnil {E} vnil {cond} (vbool ff) -o act I R0 T0 Rc0 N\n"
+                          f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N"
+                          f" * kill I (k_local {where}){outs}}}.")
+
+    def time_declarations(self) -> list[str]:
+        """Timed mode: the clock's declarations and rules, its tables, the ensures' periods."""
+        n = self.cycle
+        out = ["", TIME_TEXT.strip()]
+        out += [f"tnext_{k} : tnext {k} {(k + 1) % n}." for k in range(n)]
+        out += [f"tafter_{p}_{k} : tafter {p} {k} {(k + p) % n}." for p in sorted(self.periods) for k in range(n)]
+        out += [f"eperiod_{c} : eperiod {c} {p}." for c, p in sorted(self.eperiods.items())]
+        # time is no agent's step: the tick, the wakes and the re-checks that find nothing have their
+        # own fairness group (a spelling no agent can have)
+        for r in ("tick", "wake", *(f"ensure_check_{c}" for c in self.eperiods),
+                  *(("st" + x[2:]) if x.startswith("pp") else x for x in self.time_steps)):
+            self.model.fair_outcomes[r] = TIME_GROUP
+        return out
+
+    def division_failures(self, st: a.Stmt, s: str, cx: _Ctx, kind: str, at: Optional[list] = None) -> None:
         """A division by zero in the statement's expressions is a local failure of the recipe at
         this site (the engine's division has no value there, so without these rules the recipe
         would block, and the explorer would call it a deadlock)."""
@@ -702,10 +949,11 @@ class _Compiler:
         for k, d in enumerate(divisors):
             where = self.site("div", cx.agent, cx.task, cx.recipe, d.pos,
                               f"division by zero: {format_expr(d)} is 0 in {self.model.sites[s].text}")
-            self.rules.append(
-                f"{s}_div{chr(97 + k)} : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
-                f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0) -o act I R0 T0 Rc0 N\n"
-                f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
+            for j, head in enumerate(at or [s]):   # (timed: the statement's polled forms too)
+                self.rules.append(
+                    f"{s}_div{chr(97 + k)}{'_poll' * j} : ctl I m_run (ccons {head} C) {E} -o rstat I go{prem}"
+                    f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0) -o act I R0 T0 Rc0 N\n"
+                    f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
 
     def send(self, ag: a.Agent, st, cx: _Ctx, s: str, head: str) -> None:
         """make / ensure (4.4, 8.3): a fresh request with the where values, owned by the activation."""
@@ -726,6 +974,10 @@ class _Compiler:
         kind = "make" if isinstance(st, a.Make) else "ensure"
         if kind == "ensure":
             self.ensured.add(cst)
+            ticks = self.ticks_of(st)
+            if ticks is not None:   # timed: re-checked at its period (the shortest of its ensures)
+                self.eperiods[cst] = min(ticks, self.eperiods.get(cst, ticks))
+                self.periods.add(self.eperiods[cst])
         pairs = self._list([f"(vpair (vcell {c}) {w})" for c, w in zip(cells, names)])
         stamp_p, stamp_o, failed = self.stamp(target)
         evals += stamp_p
@@ -857,6 +1109,7 @@ class _Compiler:
                     m.recipes[rc] = (ag.name, t.name, r.name)
                     o.append(f"{rc} : recipe.")
         hdr = len(o)   # constraint declarations go here (they are known at the end)
+        self.setup_clock()
         # tasks: pre/post (symbolic), incompatible tasks (4.3), recipes
         incompatible = incompatible_tasks(self.checked)
         for ag in spec.agents:
@@ -912,6 +1165,8 @@ class _Compiler:
             self.constraint_rules(c)
         if self.crashes:
             o.extend(self.crash_declarations(sum(len(ag.tasks) for ag in spec.agents)))
+        if self.clock:
+            o.extend(self.time_declarations())
         self.guard_crashed()
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
         o.extend("st" + r[2:] if r.startswith("pp") else r for r in self.rules)
@@ -927,6 +1182,8 @@ class _Compiler:
                 c = self.cell(ag.name, v.name)
                 init.append(f"contains {c} {self.initial(ag, v)}")
         failed, sent = "vnil", "rs r0 s_sent"
+        if self.clock:
+            init.append("clock 0 * tmrs vnil")
         if self.crashes:
             init.extend(self.crash_init())
             if top.name in self.crash_agents:   # sent in epoch 0
@@ -1111,7 +1368,9 @@ class _Compiler:
             f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
             f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"
             f"  -o {{hs R (h_verdict B) EC F Pl W * {rq}{back}}}.")
-        if c in self.ensured:
+        if c in self.eperiods:
+            self.timed_ensure_rules(c, tag, rq, reads, back, snap(vars_), pred_p)
+        elif c in self.ensured:
             # a held ensure is re-checked (4.4, 5.2): when its predicate stops holding, the
             # request goes to temporary failure with the breach in its error context, its tasks
             # are released, it decides again, and its emitter pauses meanwhile (figure 3)
@@ -1126,6 +1385,29 @@ class _Compiler:
                 f"  -o {{{again} * rstat J Z1 * act J R0 T0 Rc0 N0 * rs R0 S1}}.")
             self.rules.append(
                 f"ensure_broken_top_{c} : {head} -o !detached J\n  -o {{{again}}}.")
+
+    def timed_ensure_rules(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap: str, pred_p: str) -> None:
+        """Timed mode: a held ensure of ``c`` is re-checked at its period (``held_arm`` arms it),
+        not at any moment: at its tick it is armed again if its predicate holds, and otherwise it
+        is broken as in the untimed model (temporary failure, tasks released, decided again, its
+        emitter paused), its timer gone."""
+        ens = f"rq R a_{tag.name} {c} J k_ensure"
+        due = "-o clock Dk -o tmrs Lk -o !tm_rm Dk Lk Lk1"
+        self.rules.append(
+            f"ensure_check_{c} : hs R (h_heldt Dk) EC F Pl W -o {ens} {due}{reads}\n"
+            f"  -o !peval {snap} vnil vnil {pred_p} (vbool tt) -o !eperiod {c} Pk -o !tafter Pk Dk Dk2"
+            f" -o !tm_ins Dk2 Lk1 Lk2\n"
+            f"  -o {{hs R (h_heldt Dk2) EC F Pl W * {ens} * clock Dk * tmrs Lk2{back}}}.")
+        head = (f"hs R (h_heldt Dk) EC F Pl W -o rs R s_success -o {ens} -o mask a_{tag.name} M -o !mrm M Pl M1"
+                f" {due} -o !clk_norm Lk1 Dk Tk1{reads}\n"
+                f"  -o !peval {snap} vnil vnil {pred_p} (vbool ff) -o !ec_broke {c} EC EC1")
+        again = (f"hs R h_select EC1 F vnil vnone * rs R s_tempfail * {ens}"
+                 f" * mask a_{tag.name} M1 * clock Tk1 * tmrs Lk1{back}")
+        self.rules.append(
+            f"ensure_broken_{c} : {head}\n"
+            f"  -o rstat J Z -o !child_pause Z Z1 -o act J R0 T0 Rc0 N0 -o rs R0 S0 -o !shown Z Z1 S0 S1\n"
+            f"  -o {{{again} * rstat J Z1 * act J R0 T0 Rc0 N0 * rs R0 S1}}.")
+        self.rules.append(f"ensure_broken_top_{c} : {head} -o !detached J\n  -o {{{again}}}.")
 
     def outcome_rules(self, fc: str, owner: Optional[str], name: str, rty: Optional[str]) -> list[str]:
         prim = None
@@ -1320,13 +1602,17 @@ class _Compiler:
 
 
 def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[Registry] = None,
-                 functional: str = "abstract", crashes: Optional[Crashes] = None) -> CompiledModel:
+                 functional: str = "abstract", crashes: Optional[Crashes] = None,
+                 time=None) -> CompiledModel:
     """Compile ``spec`` (as :func:`~roar_formal.roar.spec.load_spec` loaded it, or checked) with
     ``request`` (text or Constraint) to CLF.
 
     ``functional`` is "abstract" (each primitive's declared outcomes are
     rules: the explorer branches on them) or "python" (pending calls are
     answered by the registry's callables, outside the signature).
+    ``crashes`` (docs/semantics.md, "Crashes") and ``time`` ("untimed", the default, "timed" or
+    a :class:`Timing`; docs/semantics.md, "Time") are opt-in: without them the model is the one
+    compiled without faults or clock, to the byte.
     """
     checked = checked_spec(spec)
     if registry is not None and functional == "python":
@@ -1339,8 +1625,13 @@ def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[R
     if req.target() is None:
         raise RoarError("the request must name exactly one agent", req.pos)
     check_crashes(checked.spec, crashes)
-    model = _Compiler(checked.with_types(typed), registry, functional, crashes).compile(req)
+    timing = timing_of(time)
+    if timing and crashes:
+        raise RoarError("the timed mode and crashes cannot be combined yet (docs/semantics.md, Known gaps): "
+                        "check the crashes untimed", timing.where[0] if timing.where else None)
+    model = _Compiler(checked.with_types(typed), registry, functional, crashes, timing).compile(req)
     model.crashes = crashes if crashes else None
+    model.timing = timing
     return model
 
 

@@ -44,7 +44,8 @@ from .run import list_items
 PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_again", "written_holds_again_top",
                   "written_holds_held", "written_holds_again_held", "written_holds_again_held_top",
                   "no_task", "post_violated",
-                  "conflict_failed", "aborted", "aborted_idle")
+                  "conflict_failed", "aborted", "aborted_idle",
+                  "aborted_held")   # (timed: a held ensure aborted while it waits for its re-check)
 FINAL_STATES = ("s_success", "s_failure")
 
 #: the sequential-achievement monitor's own facts besides mon_in / mon_cmd / mon_b (never
@@ -64,7 +65,7 @@ EXCLUSIVE_WRITES_FAMILIES = frozenset({"rq", "hs"})
 
 _REQ_FAMILIES = V.REQUEST_FAMILIES
 _INST_FAMILIES = V.INSTANCE_FAMILIES
-_SITE_RULE = re.compile(r"st(\d+)_([a-z_]+?)(?:_false|_wake)?$")
+_SITE_RULE = re.compile(r"st(\d+)_([a-z_]+?)(?:_false|_wake|_poll_false|_poll|_timeout|_sleep)?$")
 
 
 _h = V.head_name

@@ -26,6 +26,9 @@ from ..clf.printer import show
 from ..clf.terms import Const, Root, const, num_term, num_value, string_term, string_value
 from ..errors import RoarError
 from .compile import CRASH_RULES, CompiledModel, Crashes, num_lit
+
+#: the clock's rule in a timed model (docs/semantics.md, Time): a run takes it when nothing else can happen
+TICK_RULE = "tick"
 from .functional import Outcome, Registry
 from . import vocabulary as V
 from .pretty import string_literal
@@ -605,7 +608,7 @@ def _by_family(facts) -> dict:
 
 
 def site_of(rule: str) -> str:
-    m = re.match(r"st(\d+)_([a-z_]+?)(?:_false|_wake)?$", rule)
+    m = re.match(r"st(\d+)_([a-z_]+?)(?:_false|_wake|_poll_false|_poll|_timeout|_sleep)?$", rule)
     return f"pp{m.group(1)}_{m.group(2)}" if m else ""
 
 
@@ -738,6 +741,11 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     templates = prog.templates
     if model.crashes:   # crashes and comebacks happen when --crash says, never by the scheduler's choice
         templates = [t for t in templates if t.name not in CRASH_RULES]
+    # timed (docs/semantics.md, Time): time is slow in a run, as the functional layer is: the
+    # clock advances only when nothing else can happen (no step, no call to answer)
+    tick_tpl = [t for t in templates if t.name == TICK_RULE] if getattr(model, "tick_ms", None) else []
+    if tick_tpl:
+        templates = [t for t in templates if t.name != TICK_RULE]
     runner = Run(templates, ctx, seed=seed, fair=fair, prover=prog.prover(), on_step=on_step)
     fire_due()
     pending = Const("pending")
@@ -751,6 +759,12 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
         if not calls:
             if schedule is not None and schedule.at_rest(ctx) and fire_due():
                 continue   # a comeback due later: nothing else can happen before it
+            tick = next(iter(enabled_steps(tick_tpl, ctx, prog.prover())), None) if tick_tpl else None
+            if tick is not None and not (max_steps and runner.steps >= max_steps):
+                _nxt, st = prog.successor(ctx, tick)   # the tick's instance, applied to the run's context
+                on_step(runner.external([f for _m, f in st.consumed], [f for _m, f in st.produced],
+                                        rule=TICK_RULE), ctx)
+                continue
             break
         # answer the oldest call first (all pending calls were made while the rest waited)
         for f in calls:

@@ -48,4 +48,7 @@ def run_records(res, spec, request: str, seed: int, faults, functional: Optional
               "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
               "outcome": res.outcome, "requests": res.requests,
               "fingerprint": spec_fingerprint(Path(spec), res.model.spec, functional)}
+    timing = getattr(res.model, "timing", None)
+    if timing:   # the timed model (replay recompiles the same one)
+        header.update(timing.header())
     return header, steps

@@ -223,22 +223,25 @@ class AgentSpec:
         from ..roar.functional import load_registry
         return load_registry(self.functional)
 
-    def compile(self, request: str, mode: str = "python", crashes: Any = None) -> "CompiledModel":
+    def compile(self, request: str, mode: str = "python", crashes: Any = None, time: Any = None,
+                wait_timeout: Optional[int] = None) -> "CompiledModel":
         """The compiled model of a request: ``mode`` "python" for runs (the registry's callables
         answer calls), "abstract" for exploration (declared outcomes are rules). ``crashes``: a
-        ``roar.compile.Crashes``, or the ``--crash`` values of a run (docs/semantics.md, Crashes)."""
+        ``roar.compile.Crashes``, or the ``--crash`` values of a run (docs/semantics.md, Crashes).
+        ``time``: "untimed" (default) or "timed", with ``wait_timeout`` in ms (docs/semantics.md, Time)."""
         from ..roar.compile import Crashes, compile_spec
         from ..roar.run import crash_setup
         if mode not in ("python", "abstract"):
             raise RoarError(f"compile mode must be 'python' or 'abstract', not {mode!r}")
         if crashes is not None and not isinstance(crashes, Crashes):
             crashes = crash_setup([crashes] if isinstance(crashes, str) else crashes)
-        key = (request, mode, crashes or None)
+        timing = _timing(time, wait_timeout)
+        key = (request, mode, crashes or None, timing)
         model = self._compiled.get(key)
         if model is None:
             reg = self.registry()
             model = self._compiled[key] = compile_spec(self.ast, request, registry=reg, functional=mode,
-                                                       crashes=crashes)
+                                                       crashes=crashes, time=timing)
             self._spare = reg   # unused by any run yet: the next run takes it (the module runs once)
         return model
 
@@ -250,7 +253,7 @@ class AgentSpec:
     # -- running -----------------------------------------------------------------------
     def run(self, request: str, *, seed: int = 0, faults: Iterable[FaultLike] = (), max_steps: int = 100_000,
             fair: bool = False, strict_faults: bool = False, scenario: Optional[PathLike] = None,
-            crashes: Iterable[Any] = ()) -> "RunReport":
+            crashes: Iterable[Any] = (), time: Any = None, wait_timeout: Optional[int] = None) -> "RunReport":
         """Run the spec on ``request`` to quiescence, as ``roar-verify run`` does (or, with a
         ``scenario``, on the reference robot as ``roar-verify simulate`` does).
 
@@ -259,6 +262,8 @@ class AgentSpec:
         ``strict_faults`` (the command line's behaviour); otherwise it is listed in
         ``RunReport.unused_faults``: a generated fault schedule may name calls a run never makes.
         ``crashes`` are ``AGENT@STEP`` or ``AGENT@STEP-BACK`` (``--crash``; docs/semantics.md, Crashes).
+        ``time="timed"`` models the periods of wait, assert and ensure, a wait giving up after
+        ``wait_timeout`` ms (``--time``, ``--wait-timeout``; docs/semantics.md, Time).
         """
         from ..roar.run import parse_crash
         texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
@@ -267,9 +272,12 @@ class AgentSpec:
             if crashes:
                 raise RoarError("crashes (--crash) are for runs on the model; on the robot, faults are the "
                                 "scenario's fault points")
+            if _timing(time, wait_timeout):
+                raise RoarError("the timed mode is for runs on the model; on the robot, time is the robot's "
+                                "simulated time")
             return self._simulate(request, Path(scenario), seed, texts, max_steps, strict_faults)
         wanted = list(dict.fromkeys(parse_faults(texts)))
-        model = self.compile(request, "python", crashes=crashes or None)
+        model = self.compile(request, "python", crashes=crashes or None, time=time, wait_timeout=wait_timeout)
         res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self._run_registry(), fs, fair,
                                                           crashes), wanted, strict_faults)
         return RunReport(self.name, request, seed, tuple(texts), res, max_steps,
@@ -308,11 +316,13 @@ class AgentSpec:
                 never: Sequence[str] = (), progress: Sequence[str] = (), sequence_recipes: Sequence[str] = (),
                 budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None,
                 crash: Sequence[str] = (), max_crashes: int = 1,
-                incompatible: Sequence[Sequence[str]] = ()) -> "Exploration":
+                incompatible: Sequence[Sequence[str]] = (), time: Any = None,
+                wait_timeout: Optional[int] = None) -> "Exploration":
         """Explore every interleaving and every declared outcome of the functional layer, as a
         job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property,
         ``incompatible`` pairs of 'agent::task' names the ``incompatible-tasks`` property (no two
         live requests hold them at once; without pairs it checks those the spec makes incompatible).
+        ``time="timed"`` (with ``wait_timeout`` in ms) explores the timed model (a job's ``time``).
         ``crash`` names agents that may crash and come back, at most ``max_crashes`` times in a
         run (a job's [faults] table; docs/semantics.md, Crashes)."""
         from ..roar.compile import Crashes
@@ -335,6 +345,9 @@ class AgentSpec:
                   budget=as_budget(budget), reduction=reduction, spec=spec_path, request=request,
                   functional=self.functional)
         job.crashes = Crashes(tuple([crash] if isinstance(crash, str) else crash), max_crashes) if crash else None
+        job.time = _timing(time, wait_timeout)
+        if job.time and job.crashes:
+            raise RoarError("the timed mode and crashes cannot be combined yet (docs/semantics.md, Known gaps)", pos)
         return _explore(job)
 
     def explore_on_robot(self, request: str, scenario: PathLike,
@@ -444,6 +457,17 @@ def _job_name(spec_name: str, request: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]", "_", Path(spec_name.strip("<>")).stem) or "spec"
 
 
+def _timing(time: Any, wait_timeout: Optional[int]):
+    """A ``roar.compile.Timing`` from the API's ``time`` ("untimed", "timed" or a Timing) and
+    ``wait_timeout`` (ms), checked; None when untimed."""
+    from ..roar.compile import Timing, timing_of
+    if time is None and wait_timeout is None:
+        return None
+    if wait_timeout is not None and not isinstance(time, Timing):
+        time = Timing(time if time is not None else "timed", wait_timeout)
+    return timing_of(time)
+
+
 def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple) -> list[str]:
     if isinstance(properties, str):
         properties = [properties]
@@ -531,16 +555,26 @@ def load_job(path: PathLike) -> Job:
 
 
 def load_jobs(paths: Sequence[PathLike], *, request: Optional[str] = None,
-              properties: Sequence[str] = ()) -> list[Job]:
+              properties: Sequence[str] = (), time: Any = None, wait_timeout: Optional[int] = None) -> list[Job]:
     """What ``roar-verify check PATH...`` checks: job files, the job files of folders (sorted), and
-    models or specs named directly (checked for ``properties``, a spec on ``request``). Every job is
-    read and checked before any runs."""
+    models or specs named directly (checked for ``properties``, a spec on ``request``, explored
+    untimed or, with ``time="timed"``, timed). Every job is read and checked before any runs."""
     from ..verify.jobs import find_jobs, job_for_model
     from ..verify.jobs import load_job as read_job
     ps = [Path(p) for p in paths]
     models = [p for p in ps if is_model_path(p)]
     files = find_jobs([p for p in ps if not is_model_path(p)]) if len(models) < len(ps) else []
-    return [Job(read_job(f)) for f in files] + [Job(job_for_model(p, request, list(properties))) for p in models]
+    direct = [job_for_model(p, request, list(properties)) for p in models]
+    timing = _timing(time, wait_timeout)
+    if timing:
+        if not direct:
+            raise RoarError("--time is for a spec named on the command line; a job file says its own "
+                            "(time = \"timed\")")
+        for j in direct:
+            if not j.is_roar:
+                raise RoarError(f"{j.path}: --time is for a ROAR spec; a .clf program has no periods")
+            j.time = timing
+    return [Job(read_job(f)) for f in files] + [Job(j) for j in direct]
 
 
 def write_html_report(folder: PathLike, explorations: Sequence[Exploration], inputs: Sequence[PathLike] = ()) -> Path:
@@ -1121,6 +1155,9 @@ class Replay:
         """Whether the end of the replay shows again what the trace claims."""
         if self.confirmed is False:
             return Lines().add(f"NOT CONFIRMED: {self.confirmation}", style="red")
+        from ..verify.replay import NOTHING_CLAIMED
+        if self.confirmed is None and self.confirmation == NOTHING_CLAIMED:
+            return Lines()   # a trace that claims nothing: the replayed line has said it all
         return Lines().add(("confirmed: " if self.confirmed else "") + self.confirmation,
                            style="green" if self.confirmed else "")
 

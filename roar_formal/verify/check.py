@@ -167,7 +167,8 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     spec_ast = load_spec(job.spec)
     fingerprint = spec_fingerprint(job.spec, spec_ast, fn_path)
     model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract",
-                         crashes=getattr(job, "crashes", None))   # [faults] crash (docs/semantics.md, Crashes)
+                         crashes=getattr(job, "crashes", None),   # [faults] crash (docs/semantics.md, Crashes)
+                         time=getattr(job, "time", None))         # time / [time] (docs/semantics.md, Time)
     program, start, options, pairs = roar_setup(job, model)
     props = job.props
     never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \
@@ -534,6 +535,8 @@ def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
              else {"model": str(job.model), "start": job.start})
     if getattr(job, "crashes", None):   # the model was compiled with these crashes ([faults])
         where["crash"], where["max_crashes"] = list(job.crashes.agents), job.crashes.bound
+    if getattr(job, "time", None):      # ... and in the timed mode (replay recompiles the same model)
+        where.update(job.time.header())
     if job.is_roar and getattr(result, "roar", None) is not None:   # the pairs of make; make the job checked (TCA reads them)
         header_pairs = {"seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text, p.kept]
                                       for p in result.roar[2].system.pairs]}

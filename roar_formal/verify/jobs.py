@@ -99,6 +99,7 @@ class Job:
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
     robot: Optional[RobotSetup] = None  # robot-backed: the reference robot is the functional layer
     crashes: Any = None                 # [faults]: roar.compile.Crashes, the agents that may crash (None: none)
+    time: Any = None                    # time / [time]: roar.compile.Timing (None: untimed; docs/semantics.md, Time)
 
     @property
     def is_roar(self) -> bool:
@@ -505,11 +506,42 @@ def _name_pos(path: Path, key: str, name: str, nth: int = 1) -> Pos:
     return _value_pos(path, key)
 
 
+def _time_setup(d: dict, path: Path):
+    """``time = "untimed" | "timed"``, or a ``[time]`` table: ``mode`` (default "timed") and
+    ``wait_timeout`` (ms; a wait with a period gives up after that long). docs/checking.md;
+    the semantics is docs/semantics.md, "Time". None when untimed."""
+    from ..roar.compile import TIME_MODES, Timing
+    v = d["time"]
+    shown = lambda x: ("true" if x else "false") if isinstance(x, bool) else json.dumps(x) \
+        if isinstance(x, str) else repr(x) if isinstance(x, (int, float)) else f"a {type(x).__name__}"
+    modes = " or ".join(f'"{m}"' for m in TIME_MODES)
+    timeout, tpos = None, None
+    if isinstance(v, dict):
+        _expect_keys(v, {"mode", "wait_timeout"}, "[time]", path)
+        mode = v.get("mode", "timed")
+        mpos = _value_pos(path, "mode") if "mode" in v else Pos(str(path), _line_of(path, "time"), 1)
+        what = "[time] mode"
+        if "wait_timeout" in v:
+            timeout, tpos = v["wait_timeout"], _value_pos(path, "wait_timeout")
+            if isinstance(timeout, bool) or not isinstance(timeout, int) or not 1 <= timeout <= MAX_BOUND:
+                raise RoarError(f"[time] wait_timeout is a whole number of milliseconds, at least 1 (a wait with a "
+                                f"period gives up after that long), not {shown(timeout)}", tpos)
+    else:
+        mode, mpos, what = v, _value_pos(path, "time"), "time"
+    if not isinstance(mode, str) or mode not in TIME_MODES:
+        raise RoarError(f"{what} is {modes} (or a [time] table), not {shown(mode)}", mpos)
+    if timeout is not None and mode != "timed":
+        raise RoarError("[time] wait_timeout needs mode = \"timed\": an untimed wait never times out", tpos)
+    timing = Timing(mode, timeout, (mpos, tpos))
+    return timing if timing else None
+
+
+
 def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
     _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
-                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot", "faults"},
+                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot", "faults", "time"},
                  "a job file", path)
     base = path.parent
     if "spec" in d:
@@ -531,6 +563,14 @@ def load_job(path: str | Path) -> Job:
             if job.crashes and job.robot is not None:
                 raise RoarError("[faults] crash is for a job on the model; on the robot, faults are the "
                                 "scenario's fault points ([robot] faults)", Pos(str(path), _line_of(path, "faults"), 1))
+        if "time" in d:
+            job.time = _time_setup(d, path)
+            if job.time and job.robot is not None:
+                raise RoarError("the timed mode is for a job on the model; on the robot, time is the robot's "
+                                "simulated time", job.time.where[0])
+            if job.time and job.crashes:
+                raise RoarError("the timed mode and [faults] crash cannot be combined yet (docs/semantics.md, "
+                                "Known gaps): check the crashes untimed", job.time.where[0])
     else:
         if "robot" in d:
             raise RoarError("'robot' belongs to a job on a spec ('spec = ...'): the robot is the functional layer "
@@ -538,7 +578,7 @@ def load_job(path: str | Path) -> Job:
         if "model" not in d:
             raise RoarError("a job needs 'model = \"path/to/model.clf\"' or 'spec = \"path/to/spec.roar\"' "
                             "with a 'request'", Pos(str(path), 1, 1))
-        for k in ("request", "functional", "faults"):
+        for k in ("request", "functional", "faults", "time"):
             if k in d:
                 raise RoarError(f"'{k}' belongs to a job on a spec ('spec = ...'), not on a .clf model",
                                 Pos(str(path), _line_of(path, k), 1))

@@ -51,6 +51,10 @@ def need_model(path, header: dict, how: str = CLI_MODEL) -> RoarError:
     return RoarError(f"{path}: replay needs the model {where}: {how}", None, notes)
 
 
+#: the confirmation of a trace that claims nothing (a run's trace): only its steps were checked
+NOTHING_CLAIMED = "every step is a step of the model"
+
+
 def load_replay_target(path, header: dict, model, functional=None, force: bool = False,
                        notes: Optional[list[str]] = None) -> tuple[Program, Optional[CompiledModel]]:
     """The program to replay ``path`` on: ``model`` is a ``.clf`` file, or a ROAR spec compiled
@@ -74,8 +78,38 @@ def load_replay_target(path, header: dict, model, functional=None, force: bool =
     fn = functional_module(model, Path(functional) if functional is not None else None)
     check_fingerprint(path, header, spec_fingerprint(model, spec_ast, fn), force, notes)
     reg = load_registry(fn)
-    compiled = compile_spec(spec_ast, request, registry=reg, functional="abstract")
+    # the options the counterexample's model was compiled with, as its header records them
+    compiled = compile_spec(spec_ast, request, registry=reg, functional="abstract",
+                            crashes=header_crashes(path, header), time=header_timing(path, header))
     return compiled.program(), compiled
+
+
+def header_crashes(path, header: dict):
+    """The crashes a trace's header records (``crash``, ``max_crashes``: a job's [faults]), or None."""
+    from ..roar.compile import Crashes
+    agents, bound = header.get("crash"), header.get("max_crashes", 1)
+    if agents is None:
+        return None
+    if not isinstance(agents, list) or not all(isinstance(x, str) for x in agents) or \
+            isinstance(bound, bool) or not isinstance(bound, int) or bound < 1:
+        raise RoarError(f"{path}: the trace's header records crashes it cannot mean ('crash' is a list of agent "
+                        f"names, 'max_crashes' a whole number from 1)", Pos(str(path), 1, 1))
+    return Crashes(tuple(agents), bound) if agents else None
+
+
+def header_timing(path, header: dict):
+    """The time mode a trace's header records (``time``, ``wait_timeout``), or None (untimed)."""
+    from ..roar.compile import TIME_MODES, Timing
+    mode, timeout = header.get("time"), header.get("wait_timeout")
+    if mode is None and timeout is None:
+        return None
+    if mode not in TIME_MODES or (timeout is not None and (isinstance(timeout, bool) or not isinstance(timeout, int)
+                                                            or timeout < 1 or mode != "timed")):
+        raise RoarError(f"{path}: the trace's header records a time mode it cannot mean ('time' is "
+                        f"{' or '.join(TIME_MODES)}; 'wait_timeout' a whole number of ms, timed only)",
+                        Pos(str(path), 1, 1))
+    timing = Timing(mode, timeout)
+    return timing if timing else None
 
 
 def load_replay_model(path, header: dict, model, functional=None, force: bool = False,
@@ -192,4 +226,4 @@ def _confirm(header: dict, res: ReplayResult, compiled: Optional[CompiledModel])
         return True, f"the sequential-achievement pair is still broken: {why}"
     if prop:
         return None, f"replay does not re-decide '{prop}' (its definition is in the job); every step is a step of the model"
-    return None, "every step is a step of the model"
+    return None, NOTHING_CLAIMED
