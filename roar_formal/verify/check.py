@@ -208,7 +208,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
         return verdicts
 
     def explore(opts: Options):
-        ex = Explorer(RoarSystem(model, start, opts, pairs), explorer_order(job), on_progress, job.visited)
+        ex = make_explorer(job, RoarSystem(model, start, opts, pairs), on_progress)
         ctx_of = ex.states.__getitem__   # one per explorer: the decoded states are cached on it
         return ex, lambda g: decide(g, ex.states, ex.system, ctx_of, ex.steps.__getitem__)
 
@@ -217,6 +217,9 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
                   if verdicts[p].status != want]
     backend = "general" if job.visited == "exact" else "general, hash compaction"
+    if getattr(job, "cluster", None) is not None:
+        from .cluster import cluster_note
+        backend += cluster_note(explorer)
     res = JobResult(job, verdicts, graph, backend, time.perf_counter() - t0, rss_mb(), mismatches, program,
                     reduction, fingerprint)
     res.roar = (model, start, explorer)
@@ -277,6 +280,9 @@ def _search(job: Job, t0: float, explore, options: Options):
     graph. Under reduction with weak fairness, a livelock verdict of "holds" is confirmed on
     the unreduced graph: a reduced graph keeps every fair cycle it shows (fairness is judged
     with every enabled group, expanded or not) but may miss one (docs/checking.md)."""
+    if getattr(job, "cluster", None) is not None:   # search = "distributed", or a swarm on a cluster
+        from .cluster import on_cluster
+        return on_cluster(job, t0, explore, options)
     if job.search == "swarm":
         return swarm(job, t0, explore, options)
     explorer, decide = explore(options)
@@ -299,9 +305,18 @@ def _search(job: Job, t0: float, explore, options: Options):
     return explorer, graph, verdicts
 
 
+def make_explorer(job: Job, system, on_progress):
+    """The explorer of a job's search: ``search.Explorer``, or on a cluster (a job with a [cluster]
+    table, inside ``cluster.on_cluster``) the distributed one or a swarm member run as a task."""
+    if getattr(job, "cluster", None) is not None:
+        from .cluster import make_explorer as on_the_cluster
+        return on_the_cluster(job, system, on_progress, explorer_order(job))
+    return Explorer(system, explorer_order(job), on_progress, job.visited)
+
+
 def explorer_order(job: Job) -> str:
     """The explorer's order for the job's search (a swarm's members search depth first)."""
-    return "dfs" if job.search == "swarm" else job.search
+    return "dfs" if job.search == "swarm" else "bfs" if job.search == "distributed" else job.search
 
 
 def swarm(job: Job, t0: float, explore, options: Options):
@@ -442,12 +457,15 @@ def _run_job(job: Job, on_progress) -> JobResult:
         graph, verdicts = search_rounds(job, t0, rounds, lambda g: decide(g, rounds.state_of))
     else:
         def explore(opts: Options):
-            ex = Explorer(ClfSystem(program, start, opts), explorer_order(job), on_progress, job.visited)
+            ex = make_explorer(job, ClfSystem(program, start, opts), on_progress)
             return ex, lambda g: decide(g, lambda sid: ex.states[sid])
 
         _explorer, graph, verdicts = _search(job, t0, explore, options)
         if job.visited == "hash":
             backend += ", hash compaction"
+        if getattr(job, "cluster", None) is not None:
+            from .cluster import cluster_note
+            backend += cluster_note(_explorer)
     _mark_reduction(job, verdicts, reduction)
     mismatches = []
     for p, want in job.expect.items():

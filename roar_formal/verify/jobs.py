@@ -99,6 +99,7 @@ class Job:
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
     robot: Optional[RobotSetup] = None  # robot-backed: the reference robot is the functional layer
     crashes: Any = None                 # [faults]: roar.compile.Crashes, the agents that may crash (None: none)
+    cluster: Any = None                 # [cluster] (search = "distributed", or a swarm on a cluster): verify.cluster.ClusterSetup
     time: Any = None                    # time / [time]: roar.compile.Timing (None: untimed; docs/semantics.md, Time)
 
     @property
@@ -488,24 +489,6 @@ def _faults_setup(d: dict, path: Path):
     return Crashes(tuple(names), bound, False, tuple(where)) if names else None
 
 
-def _name_pos(path: Path, key: str, name: str, nth: int = 1) -> Pos:
-    """Where the ``nth`` string ``"name"`` (quotes included, so that "pt" is not found in "ptu")
-    of the value of ``key`` starts, inside its quotes."""
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError:
-        return Pos(str(path), 1, 1)
-    start = _line_of(path, key) - 1
-    seen = 0
-    for n in range(start, len(lines)):
-        for m in re.finditer(r'"((?:[^"\\]|\\.)*)"|\'([^\']*)\'', lines[n]):
-            if name in (m.group(1), m.group(2)):
-                seen += 1
-                if seen == nth:
-                    return Pos(str(path), n + 1, m.start() + 2)
-    return _value_pos(path, key)
-
-
 def _time_setup(d: dict, path: Path):
     """``time = "untimed" | "timed"``, or a ``[time]`` table: ``mode`` (default "timed") and
     ``wait_timeout`` (ms; a wait with a period gives up after that long). docs/checking.md;
@@ -536,12 +519,30 @@ def _time_setup(d: dict, path: Path):
     return timing if timing else None
 
 
+def _name_pos(path: Path, key: str, name: str, nth: int = 1) -> Pos:
+    """Where the ``nth`` string ``"name"`` (quotes included, so that "pt" is not found in "ptu")
+    of the value of ``key`` starts, inside its quotes."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return Pos(str(path), 1, 1)
+    start = _line_of(path, key) - 1
+    seen = 0
+    for n in range(start, len(lines)):
+        for m in re.finditer(r'"((?:[^"\\]|\\.)*)"|\'([^\']*)\'', lines[n]):
+            if name in (m.group(1), m.group(2)):
+                seen += 1
+                if seen == nth:
+                    return Pos(str(path), n + 1, m.start() + 2)
+    return _value_pos(path, key)
+
 
 def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
     _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
-                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot", "faults", "time"},
+                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot", "faults", "time",
+                     "cluster"},
                  "a job file", path)
     base = path.parent
     if "spec" in d:
@@ -598,7 +599,7 @@ def load_job(path: str | Path) -> Job:
             raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
                             Pos(str(path), _line_of(path, "properties"), 1))
         load_properties((base / p).resolve(), job.props)
-    for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs", "swarm")),
+    for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs", "swarm", "distributed")),
                          ("visited", ("exact", "hash"))):
         if key in d:
             v = _typed(d, key, str, path, "a job file")
@@ -621,6 +622,8 @@ def load_job(path: str | Path) -> Job:
                     raise RoarError(f"[swarm] {key} must be a whole number, at least 1, not {v!r}"[:300],
                                     _value_pos(path, key))
                 setattr(job, attr, v)
+    if "cluster" in d or job.search == "distributed":
+        job.cluster = _cluster_setup(d, path, job)
     if "canonical" in d:
         job.canonical = _typed(d, "canonical", bool, path, "a job file")
     if "reduction" in d:
@@ -671,6 +674,13 @@ def load_job(path: str | Path) -> Job:
     if not job.props.check:
         raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
                         Pos(str(path), 1, 1))
+    if job.cluster is not None:   # search = "distributed", or a swarm on a cluster
+        for bad, why in ((job.robot is not None, "robot-backed jobs (their states pair a model state with the robot's)"),
+                         (job.reduction, "partial-order reduction (its cycle proviso reads the whole visited set)"),
+                         (job.backend == "ground", "the ground backend (it searches in one process)")):
+            if bad:
+                what = "search = \"distributed\"" if job.search == "distributed" else "a swarm on a cluster"
+                raise RoarError(f"{what} is not available for {why}", Pos(str(path), _line_of(path, "search"), 1))
     if job.search == "swarm" and job.robot is not None:
         raise RoarError("search = \"swarm\" is not available for robot-backed jobs: use bfs or dfs",
                         Pos(str(path), _line_of(path, "search"), 1))
@@ -678,6 +688,52 @@ def load_job(path: str | Path) -> Job:
         raise RoarError("visited = \"hash\" is not available for robot-backed jobs (their states pair a model "
                         "state with the robot's): remove it", Pos(str(path), _line_of(path, "visited"), 1))
     return job
+
+
+def _cluster_setup(d: dict, path: Path, job: Job):
+    """The [cluster] table (docs/checking.md, "Running on a cluster"): ``workers = N`` (a local
+    cluster of N processes, default 2) or ``address = "tcp://host:port"`` (a running scheduler),
+    and ``batch`` (frontier states each worker expands per exchange)."""
+    from .cluster import ADDRESS, MAX_WORKERS, ClusterSetup
+    where = Pos(str(path), _line_of(path, "cluster" if "cluster" in d else "search"), 1)
+    setup = ClusterSetup(pos=where)
+    if "cluster" not in d:
+        return setup
+    c = _typed(d, "cluster", dict, path, "a job file")
+    _expect_keys(c, {"workers", "address", "batch", "connect_seconds"}, "[cluster]", path)
+    if job.search not in ("distributed", "swarm"):
+        raise RoarError("a [cluster] table needs search = \"distributed\" (or \"swarm\": its searches run as "
+                        "tasks on the cluster)", where)
+    if "workers" in c and "address" in c:
+        raise RoarError("[cluster] names either workers (a local cluster started for the job) or address (a "
+                        "running cluster), not both", _value_pos(path, "address"))
+
+    def shown(v) -> str:
+        return ("true" if v else "false") if isinstance(v, bool) else json.dumps(v) if isinstance(v, str) \
+            else repr(v) if isinstance(v, (int, float)) else f"a {type(v).__name__}"
+
+    for key, low, high, what in (("workers", 1, MAX_WORKERS, "worker processes"),
+                                 ("batch", 1, MAX_BOUND, "frontier states each worker expands per exchange")):
+        if key in c:
+            v = c[key]
+            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
+                raise RoarError(f"[cluster] {key} is the number of {what}, a whole number from {low} to "
+                                f"{high:,}, not {shown(v)}"[:300], _value_pos(path, key))
+            setattr(setup, key, v)
+    if "connect_seconds" in c:
+        v = c["connect_seconds"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 < v <= 3600:
+            raise RoarError(f"[cluster] connect_seconds is how long to wait for the scheduler, a number of seconds "
+                            f"above 0 and at most 3600, not {shown(v)}"[:300], _value_pos(path, "connect_seconds"))
+        setup.connect_seconds = float(v)
+    if "address" in c:
+        v = c["address"]
+        setup.address_pos = _value_pos(path, "address")
+        if not isinstance(v, str) or not ADDRESS.fullmatch(v):
+            raise RoarError(f"[cluster] address is a Dask scheduler's address such as \"tcp://10.0.0.5:8786\", "
+                            f"not {shown(v)}"[:300], setup.address_pos)
+        setup.address = v
+    return setup
 
 
 def is_model_path(p: Path) -> bool:
