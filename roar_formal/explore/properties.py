@@ -78,8 +78,7 @@ def check_states(g: StateGraph, prop: str, bad: Callable[[int], Optional[str]]) 
 
 def check_deadlock(g: StateGraph, accept: Optional[Callable[[int], bool]] = None) -> Verdict:
     """The shortest path to a quiescent state that ``accept`` does not accept."""
-    a = g.arrays()
-    outdeg = np.bincount(a["src"], minlength=g.n_states)
+    outdeg = g.out_degree()  # a graph that stores its edges by source knows them without a pass
     expanded = np.asarray(g.expanded, dtype=bool)
     quiescent = np.flatnonzero(expanded & (outdeg == 0))
     n_final = 0
