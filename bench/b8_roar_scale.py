@@ -19,7 +19,35 @@ Generated networks (``network(shape, n)``):
 
 ``python bench/run.py b8 [--quick]``; ``python bench/b8_roar_scale.py --python-path OLD`` runs
 the same measurements with another checkout of roar_formal first on ``sys.path`` (a before/after
-comparison). Reports, never asserts.
+comparison); ``--only NAMES`` and ``--max-states N`` narrow it (the same work on both sides).
+Besides wall-clock states/s, each row gives the search's CPU time and states per CPU-second,
+which a shared, loaded machine still measures fairly. Reports, never asserts.
+
+Figures (2026-11-27, one core of a shared 2-core machine under heavy load from other jobs, so
+read the CPU columns; ``--only M --max-states 6000``, each model old then new in turn; bytes per
+state are meaningless below a few hundred states, where they are a page or two of RSS):
+
+=====================  ===========  ====================  ====================
+model                  states       states/cpu-s old→new  bytes/state old→new
+=====================  ===========  ====================  ====================
+conflict               2,658        690 → 1,061           5,276 → 2,614
+ensure_slammed         2,341        945 → 1,338           3,359 → 2,016
+ensure_slammed_fixed   1,631        873 → 1,332           3,295 → 1,527
+ordered_pick           1,730        879 → 1,361           2,803 → 1,136
+chain-8                331          541 → 669             3,960 → 2,376
+fan-4 (budget)         6,000        534 → 1,107           9,263 → 5,679
+fan-6 (budget)         6,000        437 → 863             14,760 → 10,768
+fan-8 (budget)         6,000        396 → 816             15,569 → 11,534
+=====================  ===========  ====================  ====================
+
+On the fan networks (a wide frontier) most of the memory is the 2,048 frontier states kept
+live: with ``LIVE_FRONTIER = 256`` fan-4 takes 2,818 bytes per state at the same speed, but
+then the numbering of states and edges changes (see ``explore/search.py``), so it stays 2,048.
+
+Where it came from: canonical keys by colours when the refinement ends discrete (no sort, no
+renaming of every fact; ``clf/state.py``), 4-byte key words, the merged matcher with a cheaper
+premise selection (``clf/forward.py``), rigid paths kept per family bag, transitions' steps
+kept packed (``explore/system.py``). The state graphs are the old ones edge for edge.
 """
 
 from __future__ import annotations
@@ -67,7 +95,7 @@ def network(shape: str, n: int) -> tuple[str, str]:
     raise ValueError(shape)
 
 
-def one(target: str, request: str | None, max_seconds: float) -> dict:
+def one(target: str, request: str | None, max_seconds: float, max_states: int | None = None) -> dict:
     """Explore one job (a .toml) or generated spec (a .roar with ``request``) in this process."""
     import resource
     from roar_formal.clf.query import with_big_stack
@@ -98,11 +126,14 @@ def one(target: str, request: str | None, max_seconds: float) -> dict:
         before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         explorer = Explorer(system)
         t = time.perf_counter()
-        g = explorer.run(Budget(max_seconds=max_seconds))
+        c = time.process_time()
+        g = explorer.run(Budget(max_seconds=max_seconds, max_states=max_states))
+        cpu = time.process_time() - c
         secs = time.perf_counter() - t
         after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         return {"name": name, "states": g.n_states, "transitions": g.n_edges, "complete": bool(g.complete),
-                "seconds": secs, "states_per_s": g.n_states / secs,
+                "seconds": secs, "states_per_s": g.n_states / secs, "cpu_seconds": cpu,
+                "states_per_cpu_s": g.n_states / max(cpu, 1e-9),
                 "bytes_per_state": (after - before) * 1024 / max(g.n_states, 1), "peak_mb": after / 1024}
 
     return with_big_stack(go)
@@ -123,14 +154,19 @@ def targets(quick: bool, folder: Path) -> list[tuple[str, str | None]]:
     return out
 
 
-def measure(python_path: str | None, quick: bool, max_seconds: float) -> list[dict]:
+def measure(python_path: str | None, quick: bool, max_seconds: float, max_states: int | None = None,
+            only: str | None = None) -> list[dict]:
     rows = []
     env = dict(os.environ)
     if python_path:
         env["PYTHONPATH"] = python_path
     with tempfile.TemporaryDirectory() as tmp:
         for target, req in targets(quick, Path(tmp)):
+            if only and not any(w in Path(target).stem for w in only.split(",")):
+                continue
             cmd = [sys.executable, __file__, "--one", target, "--max-seconds", str(max_seconds)]
+            if max_states is not None:
+                cmd += ["--max-states", str(max_states)]
             if req is not None:
                 cmd += ["--request", req]
             out = subprocess.run(cmd, capture_output=True, text=True, env=env)
@@ -142,12 +178,15 @@ def measure(python_path: str | None, quick: bool, max_seconds: float) -> list[di
 
 
 def table(rows: list[dict]) -> list[list[str]]:
-    return [[r["name"], "error: " + " ".join(r["error"]), "", "", "", ""] if "error" in r else
+    return [[r["name"], "error: " + " ".join(r["error"]), "", "", "", "", "", ""] if "error" in r else
             [r["name"], f"{r['states']:,}", "yes" if r["complete"] else "no (budget)", f"{r['seconds']:.1f}",
-             f"{r['states_per_s']:,.0f}", f"{r['bytes_per_state']:,.0f}"] for r in rows]
+             f"{r['states_per_s']:,.0f}", f"{r.get('cpu_seconds', float('nan')):.1f}",
+             f"{r.get('states_per_cpu_s', float('nan')):,.0f}", f"{r['bytes_per_state']:,.0f}"] for r in rows]
 
 
-COLUMNS = ["model", "states", "complete", "search s", "states/s", "bytes/state"]
+#: states/s is wall-clock; states/cpu-s divides by the search's CPU time (what a shared, loaded
+#: machine still measures fairly: compare a before/after pair on the same column)
+COLUMNS = ["model", "states", "complete", "search s", "states/s", "cpu s", "states/cpu-s", "bytes/state"]
 
 
 def run(repeats: int = 1, quick: bool = False) -> dict:
@@ -162,11 +201,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-seconds", type=float, default=120.0, help="time budget of each search")
     ap.add_argument("--python-path", default=None, help="measure another checkout (put first on PYTHONPATH)")
     ap.add_argument("--quick", action="store_true", help="networks of 4 and 6 agents only")
+    ap.add_argument("--max-states", type=int, default=None, help="state budget of each search (default: none)")
+    ap.add_argument("--only", default=None, metavar="NAMES",
+                    help="comma-separated parts of the names of the models to measure (default: all)")
     args = ap.parse_args(argv)
     if args.one:
-        print(json.dumps(one(args.one, args.request, args.max_seconds)))
+        print(json.dumps(one(args.one, args.request, args.max_seconds, args.max_states)))
         return 0
-    rows = measure(args.python_path, args.quick, args.max_seconds)
+    rows = measure(args.python_path, args.quick, args.max_seconds, args.max_states, args.only)
     print(" | ".join(COLUMNS))
     for r in table(rows):
         print(" | ".join(r))

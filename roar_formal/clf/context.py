@@ -30,14 +30,16 @@ class Bag:
     keeps the index small enough to stay in cache as the context grows
     (benchmark B2)."""
 
-    __slots__ = ("items", "pos")
+    __slots__ = ("items", "pos", "paths")
     SMALL = 8
 
     def __init__(self) -> None:
         self.items: list = []
         self.pos: Optional[dict] = None
+        self.paths = None   # forward._context_paths' union of its facts' rigid paths (None: not known)
 
     def add(self, x) -> None:
+        self.paths = None
         pos = self.pos
         items = self.items
         if pos is None:
@@ -53,6 +55,7 @@ class Bag:
             items.append(x)
 
     def discard(self, x) -> None:
+        self.paths = None
         pos = self.pos
         items = self.items
         if pos is None:
@@ -511,6 +514,7 @@ def _clone(b: Bag) -> Bag:
     c = _new_bag(Bag)
     c.items = b.items.copy()
     c.pos = b.pos.copy() if b.pos is not None else None
+    c.paths = b.paths
     return c
 
 
@@ -532,6 +536,7 @@ def _build_index(order: list) -> tuple[dict, dict]:
             b = d[key] = new_bag(Bag)
             b.items = [t]
             b.pos = None
+            b.paths = None
         else:
             items = b.items
             items.append(t)

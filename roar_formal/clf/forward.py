@@ -1,8 +1,11 @@
 """Forward chaining inside the monad: one matcher, two drivers.
 
-* :func:`find_matches` enumerates the ways a template's premises can be found
-  in a context (premises ordered on the fly, most selective first, through the
-  context's argument index).
+* :func:`all_matches` is the matcher: the ways a template's premises can be found in a
+  context (premises ordered on the fly, most selective first, through the context's
+  argument index), every one or only the first (:func:`first_match`). Both drivers use it,
+  so the first match of a template is always the first of its matches
+  (``tests/clf/test_one_matcher.py`` checks it step by step along runs).
+  :func:`find_matches` is the plain generator it replaced, kept as the tests' reference.
 * :class:`Run` is the committed-choice driver: a seeded random or fair
   round-robin scheduler over an agenda of rules that might be enabled; a rule
   leaves the agenda when it fails to match and comes back only when a fact it
@@ -167,7 +170,10 @@ def find_matches(ctx: Context, tpl: Template, b: list, start: int = -1,
                  prover: Optional[Prover] = None, all_modes: bool = False) -> Iterator[list]:
     """Yield the consumption list ``[(mode, fact), ...]`` of each match; ``b`` holds
     the bindings while the generator is suspended. ``start`` >= 0 rotates candidate
-    lists (random or fair choice of instances)."""
+    lists (random or fair choice of instances).
+
+    The plain enumeration, a generator suspended per premise: the engine matches with
+    :func:`all_matches`; this is kept as the reference the tests compare it with."""
     plan, ctx_list, back = _plans(tpl)
     done = [False] * len(plan)
     used: dict = {}
@@ -244,27 +250,14 @@ def _available(key: tuple, lin: dict, aff: dict, pers: dict, used: dict) -> bool
     return have > used.get(key, 0)
 
 
-def first_match(ctx: Context, tpl: Template, b: list, start: int) -> Optional[list]:
-    """The first match of a template without proved premises: the committed-choice
-    hot path. Same search order as :func:`find_matches` (most selective premise
-    first, candidates rotated from ``start``, the first mode a fact can serve in),
-    but over a per-template plan of each premise's arguments (a constant, a bare
-    slot, or a pattern for :func:`match`) and with plain recursion, so a step in a
-    large context costs a few dictionary lookups (benchmark B2)."""
-    plan = _plans(tpl)[0]
-    consumed: list = []
-    if _first(plan, len(plan), [False] * len(plan), b, consumed, [], ctx.index, ctx.by_arg,
-              ctx.lin, ctx.aff, ctx.pers, start):
-        return consumed
-    return None
-
-
 _CONST, _SLOT, _PATTERN = 0, 1, 2
+_LIN_ONLY = (LIN,)
 
 
 def _plans(tpl: Template) -> tuple:
-    """(per context premise: (serve modes, family, arity, ((position, kind, value), ...)),
-    the context premises, the proved premises), made once per template."""
+    """(per context premise: (serve modes, family, arity, ((position, kind, value), ...), the
+    index keys among them: those of constants and bare slots), the context premises, the
+    proved premises), made once per template."""
     got = tpl.match_plan
     if got is None:
         ctx_list = tuple(p for p in tpl.premises if not p.backward)
@@ -285,38 +278,42 @@ def _premise_plan(mode: str, pat: Node) -> tuple:
             args.append((j, _SLOT, a.head.index))
         else:
             args.append((j, _PATTERN, a))
-    return _SERVE[mode], pat.head, len(pat.args), tuple(args)
+    keyed = tuple(x for x in args if x[1] != _PATTERN)
+    return _SERVE[mode], pat.head, len(pat.args), tuple(args), keyed
 
 
 def _select(plan, done: list, b: list, index: dict, by_arg: dict):
     """The remaining premise with the fewest candidates (the first on ties) and its
-    candidate bag; None when some premise has none (no match is possible)."""
+    candidate bag; None when some premise has none (no match is possible).
+
+    The scan stops at a premise with one candidate: no later one can have fewer but none,
+    and a premise with none still has none once more slots are bound, so the search below
+    finds no match either way (the matches, and their order, are those of a full scan)."""
     best = -1
     best_bag = None
     best_n = 0
     i = -1
-    for _modes, fam, _arity, args in plan:
+    for _modes, fam, _arity, _args, keyed in plan:
         i += 1
         if done[i]:
             continue
         bag = None
         bag_n = 0
-        for j, kind, v in args:
-            if kind == _SLOT:
-                v = b[v]
-                if v is None:
-                    continue
-            elif kind == _PATTERN:
-                continue
+        if keyed:
             per = by_arg.get(fam)
-            bag2 = per[j].get(v) if per is not None and j < len(per) else None
-            if bag2 is None:
-                return None
-            n2 = len(bag2.items)
-            if not n2:
-                return None
-            if bag is None or n2 < bag_n:
-                bag, bag_n = bag2, n2
+            for j, kind, v in keyed:
+                if kind == _SLOT:
+                    v = b[v]
+                    if v is None:
+                        continue
+                bag2 = per[j].get(v) if per is not None and j < len(per) else None
+                if bag2 is None:
+                    return None
+                n2 = len(bag2.items)
+                if not n2:
+                    return None
+                if bag is None or n2 < bag_n:
+                    bag, bag_n = bag2, n2
         if bag is None:
             bag = index.get(fam)
             if bag is None:
@@ -326,23 +323,77 @@ def _select(plan, done: list, b: list, index: dict, by_arg: dict):
                 return None
         if best < 0 or bag_n < best_n:
             best, best_bag, best_n = i, bag, bag_n
+            if bag_n == 1:
+                break
     return best, best_bag, best_n
 
 
-def _first(plan, left, done, b, consumed, trail, index, by_arg, lin, aff, pers, start) -> bool:
+def all_matches(ctx: Context, tpl: Template, b: list, prover: Optional[Prover] = None,
+                first_only: bool = False, start: int = -1) -> list[tuple[tuple, tuple]]:
+    """``(bindings, consumption)`` of every match of ``tpl`` in ``ctx`` (the first one only if
+    ``first_only``): the one matcher of the engine, used by the explorer (every match) and by
+    committed choice (:func:`first_match`, the first one). ``b`` holds the slots' initial values
+    and is left as it was.
+
+    The search: the remaining context premise with the fewest candidates first (through the
+    argument index; the first on ties), its candidates in bag order (rotated to begin at
+    ``start`` when ``start`` > 0: random or fair choice of instances), each candidate in every
+    mode it can serve in, then the premises proved by ``prover``, in the order written. Each
+    premise is matched through a per-template plan of its arguments (a constant, a bare slot
+    or a pattern for :func:`match`), with plain recursion collecting the matches rather than a
+    generator suspended per premise. The same order as :func:`find_matches` (the plain
+    enumeration, kept as the tests' reference) with ``all_modes=True``."""
+    ctx_plan, _ctx_list, back = _plans(tpl)
+    if back and prover is None:
+        return []
+    out: list = []
+    _search(ctx_plan, len(ctx_plan), [False] * len(ctx_plan), b, [], [], ctx, tpl, back, prover, out, first_only,
+            start)
+    return out
+
+
+def first_match(ctx: Context, tpl: Template, b: list, start: int,
+                prover: Optional[Prover] = None) -> Optional[list]:
+    """The first match of a template (the committed-choice step): the first element of
+    :func:`all_matches` with the same ``start``, by the same search stopped at its first match.
+    On a match ``b`` receives the bindings and the consumption list is returned; None (``b``
+    unchanged) when there is none."""
+    found = all_matches(ctx, tpl, b, prover, True, start)
+    if not found:
+        return None
+    bindings, consumed = found[0]
+    b[:] = bindings
+    return list(consumed)
+
+
+def _search(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only, start) -> bool:
+    """Extend the current partial match by the remaining context premises; True to stop
+    (``first_only`` and a match was found)."""
     if not left:
-        return True
-    sel = _select(plan, done, b, index, by_arg)
+        if back:
+            return _search_back(0, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
+        out.append((tuple(b), tuple(consumed)))
+        return first_only
+    sel = _select(plan, done, b, ctx.index, ctx.by_arg)
     if sel is None:
         return False
-    best, best_bag, best_n = sel
-    modes, _fam, _arity, args = plan[best]
+    best, best_bag, n = sel
+    modes, _fam, arity, args, _keyed = plan[best]
+    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
+    if not aff and not pers:   # (linear facts only, as in a compiled ROAR model: no other mode to try)
+        if modes[0] != LIN:
+            return False
+        modes = _LIN_ONLY
     done[best] = True
     items = best_bag.items
-    n = best_n
-    first = start % n if start >= 0 else 0
-    for r in range(n):
-        t = items[(first + r) % n] if first else items[r]
+    if start > 0 and n > 1 and start % n:
+        first = start % n
+        items = items[first:] + items[:first]
+    stop = False
+    for t in items:
+        targs = t.args
+        if len(targs) != arity:
+            continue
         for mode in modes:
             # is one more copy of t left in this mode, after what this match used?
             if mode == PERS:
@@ -352,16 +403,18 @@ def _first(plan, left, done, b, consumed, trail, index, by_arg, lin, aff, pers, 
                 have = lin.get(t, 0) if mode == LIN else aff.get(t, 0)
                 if not have:
                     continue
-                if consumed and have <= sum(1 for m, u in consumed if u is t and m == mode):
+                if consumed and have <= consumed.count((mode, t)):   # (terms compare by identity)
                     continue
             mark = len(trail)
             ok = True
-            targs = t.args
             for j, kind, v in args:
                 a = targs[j]
                 if kind == _SLOT:
                     w = b[v]
                     if w is None:
+                        if a.maxb:   # would capture a variable bound inside the pattern
+                            ok = False
+                            break
                         b[v] = a
                         trail.append(v)
                     elif w is not a:
@@ -376,15 +429,44 @@ def _first(plan, left, done, b, consumed, trail, index, by_arg, lin, aff, pers, 
                     break
             if ok:
                 consumed.append((mode, t))
-                if left == 1 or _first(plan, left - 1, done, b, consumed, trail, index, by_arg, lin, aff, pers,
-                                       start):
-                    return True
+                stop = _search(plan, left - 1, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only,
+                               start)
                 consumed.pop()
             while len(trail) > mark:
                 b[trail.pop()] = None
+            if stop or not ok:
+                break   # (a fact the pattern does not match fails in every mode alike)
+        if stop:
             break
     done[best] = False
-    return False
+    return stop
+
+
+def _search_back(k, back, b, consumed, trail, ctx, tpl, prover, out, first_only) -> bool:
+    """The proved premises ``back[k:]``, in order, after the context premises matched."""
+    if k == len(back):
+        out.append((tuple(b), tuple(consumed)))
+        return first_only
+    mark = len(trail)
+    stop = False
+    proofs = prover(ctx, tpl, back[k], b, trail, consumed)
+    try:
+        for extra in proofs:
+            if extra:
+                consumed.extend(extra)
+            done = _search_back(k + 1, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
+            if extra:
+                del consumed[len(consumed) - len(extra):]
+            if done:
+                stop = True
+                break
+    finally:
+        if hasattr(proofs, "close"):
+            proofs.close()
+    while len(trail) > mark:
+        b[trail.pop()] = None
+    return stop
+
 
 # ------------------------------------------------------------------ firing
 
@@ -906,11 +988,7 @@ class Run:
         return False
 
     def _first(self, tpl: Template, b: list, start: int) -> Optional[list]:
-        if tpl.backward_premises:
-            for consumed in find_matches(self.ctx, tpl, b, start, self.prover):
-                return consumed
-            return None
-        return first_match(self.ctx, tpl, b, start)
+        return first_match(self.ctx, tpl, b, start, self.prover)
 
     def external(self, consumed: list, produced: list, rule: str = "external") -> Step:
         """A step taken outside the signature (the functional layer answering a call):
@@ -1023,23 +1101,34 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
     ruling them out this way costs a set inclusion instead of a failed match. The
     templates that remain are tried in the given order, so the steps' order is
     unchanged."""
-    seen: set = set()
     paths = _context_paths(ctx)
-    for t in templates:
-        if not t.forward:
-            continue
-        need = t.__dict__.get("_rigid")
-        if need is None:
-            need = t._rigid = _template_paths(t)
+    pairs, unique = _filters(templates)
+    seen_all: Optional[set] = None if unique else set()
+    for t, need in pairs:
         if not need <= paths:
             continue
-        for bindings, consumed in all_matches(ctx, t, [None] * t.nslots, prover, first_only):
-            key = (id(t), bindings, multiset_key(consumed))
+        found = all_matches(ctx, t, [None] * t.nslots, prover, first_only)
+        if seen_all is not None:   # a template listed twice: its matches are yielded once
+            for bindings, consumed in found:
+                key = (id(t), bindings, multiset_key(consumed))
+                if key not in seen_all:
+                    seen_all.add(key)
+                    yield Choice(t, None, bindings, consumed)
+                    if first_only:
+                        return
+            continue
+        if len(found) == 1:
+            bindings, consumed = found[0]
+            yield Choice(t, None, bindings, consumed)
+            if first_only:
+                return
+            continue
+        seen: set = set()   # (matches of one template found in different premise orders)
+        for bindings, consumed in found:
+            key = (bindings, multiset_key(consumed))
             if key not in seen:
                 seen.add(key)
                 yield Choice(t, None, bindings, consumed)
-                if first_only:
-                    return
     for r in (list(ctx.rules.values()) if rules else ()):
         for t in r.alts:
             if not t.forward:
@@ -1050,113 +1139,32 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
                     return
 
 
-def all_matches(ctx: Context, tpl: Template, b: list, prover: Optional[Prover] = None,
-                first_only: bool = False) -> list[tuple[tuple, tuple]]:
-    """``(bindings, consumption)`` of every match, in the order ``find_matches(ctx, tpl, b,
-    -1, prover, all_modes=True)`` yields them (the first one only if ``first_only``).
-
-    The same search (the remaining context premise with the fewest candidates first,
-    candidates in bag order, every mode a fact can serve in, then the proved premises
-    in order), over a per-template plan of each premise's arguments as in
-    :func:`first_match` and collecting the matches instead of suspending a generator
-    per premise: the explorer enumerates every match of every state."""
-    ctx_plan, _ctx_list, back = _plans(tpl)
-    if back and prover is None:
-        return []
-    out: list = []
-    _all(ctx_plan, len(ctx_plan), [False] * len(ctx_plan), b, [], [], ctx, tpl, back, prover, out, first_only)
-    return out
+#: templates list -> (the list, its length, what _filters returns): a program's list is read
+#: in every state. Lists of a few templates (a caller
+#: asking about one rule) are not kept.
+_filter_memo: dict = {}
 
 
-def _all(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only) -> bool:
-    """Extend the current partial match by the remaining context premises; True to stop."""
-    if not left:
-        if back:
-            return _all_back(0, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
-        out.append((tuple(b), tuple(consumed)))
-        return first_only
-    sel = _select(plan, done, b, ctx.index, ctx.by_arg)
-    if sel is None:
-        return False
-    best, best_bag, _n = sel
-    modes, _fam, arity, args = plan[best]
-    done[best] = True
-    lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
-    stop = False
-    for t in best_bag.items:
-        targs = t.args
-        if len(targs) != arity:
+def _filters(templates) -> tuple:
+    """(((template, rigid paths), ...) of the forward templates, whether no template is listed
+    twice)."""
+    got = _filter_memo.get(id(templates))
+    if got is not None and got[0] is templates and got[1] == len(templates):
+        return got[2]
+    out = []
+    for t in templates:
+        if not t.forward:
             continue
-        for mode in modes:
-            # is one more copy of t left in this mode, after what this match used?
-            if mode == PERS:
-                if t not in pers:
-                    continue
-            else:
-                have = lin.get(t, 0) if mode == LIN else aff.get(t, 0)
-                if not have:
-                    continue
-                if consumed and have <= sum(1 for m, u in consumed if u is t and m == mode):
-                    continue
-            mark = len(trail)
-            ok = True
-            for j, kind, v in args:
-                a = targs[j]
-                if kind == _SLOT:
-                    w = b[v]
-                    if w is None:
-                        if a.maxb:
-                            ok = False
-                            break
-                        b[v] = a
-                        trail.append(v)
-                    elif w is not a:
-                        ok = False
-                        break
-                elif kind == _CONST:
-                    if a is not v:
-                        ok = False
-                        break
-                elif not match(v, a, b, trail):
-                    ok = False
-                    break
-            if ok:
-                consumed.append((mode, t))
-                stop = _all(plan, left - 1, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only)
-                consumed.pop()
-            while len(trail) > mark:
-                b[trail.pop()] = None
-            if stop:
-                break
-        if stop:
-            break
-    done[best] = False
-    return stop
-
-
-def _all_back(k, back, b, consumed, trail, ctx, tpl, prover, out, first_only) -> bool:
-    if k == len(back):
-        out.append((tuple(b), tuple(consumed)))
-        return first_only
-    mark = len(trail)
-    stop = False
-    proofs = prover(ctx, tpl, back[k], b, trail, consumed)
-    try:
-        for extra in proofs:
-            if extra:
-                consumed.extend(extra)
-            done = _all_back(k + 1, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
-            if extra:
-                del consumed[len(consumed) - len(extra):]
-            if done:
-                stop = True
-                break
-    finally:
-        if hasattr(proofs, "close"):
-            proofs.close()
-    while len(trail) > mark:
-        b[trail.pop()] = None
-    return stop
+        need = t.__dict__.get("_rigid")
+        if need is None:
+            need = t._rigid = _template_paths(t)
+        out.append((t, need))
+    out = (tuple(out), len({id(t) for t, _ in out}) == len(out))
+    if len(templates) > 8 and isinstance(templates, list):
+        if len(_filter_memo) > 64:
+            _filter_memo.clear()
+        _filter_memo[id(templates)] = (templates, len(templates), out)
+    return out
 
 
 #: how deep below a premise's (or fact's) arguments rigid heads are recorded
@@ -1167,6 +1175,8 @@ _PATH_DEPTH = 2
 _fact_paths: dict = {}
 _path_intern: dict = {}
 _PATHS_MAX = 500_000
+#: a bag's paths -> itself (the bags of one family in state after state mostly have the same)
+_bag_paths_intern: dict = {}
 
 
 def _rigid_paths(t: Node, prefix: tuple, depth: int, out: list) -> None:
@@ -1200,21 +1210,34 @@ def _template_paths(tpl: Template) -> frozenset:
 
 
 def _context_paths(ctx: Context) -> set:
-    """The rigid paths of every fact of ``ctx``, whatever its mode."""
+    """The rigid paths of every fact of ``ctx``, whatever its mode: the union over the family
+    bags of the index (which hold each fact present once), each bag's union kept on the bag
+    until it changes (most families do not change from a state to its successor)."""
     out: set = set()
-    memo = _fact_paths
-    for d in (ctx.lin, ctx.aff, ctx.pers):
-        for t in d:
-            ps = memo.get(t)
-            if ps is None:
-                if len(memo) >= _PATHS_MAX:
-                    memo.clear()
-                    _path_intern.clear()
-                acc = [(t.head,)]
-                _rigid_paths(t, (t.head,), _PATH_DEPTH, acc)
-                ps = memo[t] = tuple([_path_intern.setdefault(p, p) for p in acc])
-            out.update(ps)
+    for bag in ctx.index.values():
+        ps = bag.paths
+        if ps is None:
+            ps = _bag_paths(bag.items)
+            ps = bag.paths = _bag_paths_intern.setdefault(ps, ps)
+        out |= ps
     return out
+
+
+def _bag_paths(facts: list) -> frozenset:
+    acc: set = set()
+    memo = _fact_paths
+    for t in facts:
+        ps = memo.get(t)
+        if ps is None:
+            if len(memo) >= _PATHS_MAX:
+                memo.clear()
+                _path_intern.clear()
+                _bag_paths_intern.clear()
+            got = [(t.head,)]
+            _rigid_paths(t, (t.head,), _PATH_DEPTH, got)
+            ps = memo[t] = tuple([_path_intern.setdefault(p, p) for p in got])
+        acc.update(ps)
+    return frozenset(acc)
 
 
 def multiset_key(consumed) -> tuple:

@@ -75,7 +75,7 @@ def _other_items(ctx: Context) -> list[tuple]:
 _params_memo: dict = {}
 _shape_memo: dict = {}
 _rename_memo: dict = {}
-_MEMO_MAX = 500_000
+_MEMO_MAX = 200_000
 
 
 def _params(t: Node) -> tuple:
@@ -127,7 +127,16 @@ def canonical_key(ctx: Context, rounds: int = 3) -> tuple:
     return key
 
 
-def _canonical_key(ctx: Context, rounds: int) -> tuple:
+def _canonical_key(ctx: Context, rounds: int) -> bytes:
+    """The key: by the fast path when it applies (see ``_fast_key``), else by
+    ``_numbered_key``."""
+    key = _fast_key(ctx, rounds)
+    return key if key is not None else _numbered_key(ctx, rounds)
+
+
+def _numbered_key(ctx: Context, rounds: int) -> bytes:
+    """The key by colour refinement, a sort of the hypotheses by coloured shape and names
+    numbered by first occurrence in that order (any context)."""
     # Every hypothesis is (kind, mode, payload tuple of terms or None, multiplicity): a fact
     # ("f", mode, (t,), n), a rule ("r", mode, (id of its first alternative, *env), 1), an
     # inert one ("i", mode, (t,), 1), in this order. Those without fresh names go to
@@ -250,8 +259,44 @@ _item_ids: dict = {}
 
 def _compact(counts: dict) -> bytes:
     """The multiset ``counts`` as a short byte string, equal exactly when the multisets are
-    equal: each item's number and multiplicity in one 64-bit word, sorted. A visited state's
-    key costs 8 bytes per distinct hypothesis instead of a frozenset of tuples (benchmark B8)."""
+    equal: each item's number and multiplicity in one word, sorted (see ``_words_bytes``). A
+    visited state's key costs 4 bytes per distinct hypothesis instead of a frozenset of tuples
+    (benchmark B8)."""
+    ids = _item_ids
+    words = []
+    big = False
+    for k, n in counts.items():
+        i = ids.get(k)
+        if i is None:
+            i = ids[k] = len(ids)
+        if n >= 256 or i >= _NARROW_IDS:
+            big = True
+        words.append(i << 8 | n)
+    if big:
+        return _wide(counts)
+    return _words_bytes(words)
+
+
+#: item numbers below this, multiplicities below 256: a key's words are 32 bits (``_words_bytes``)
+_NARROW_IDS = (1 << 24) - 1
+
+
+def _words_bytes(words: list) -> bytes:
+    """Narrow words (item number << 8 | multiplicity, each below 2^32, never 0), sorted, as
+    bytes; a zero word after them when their count is odd, so that a key is a whole number of
+    8-byte units. A key with an item number or a multiplicity too large for a narrow word is
+    written by ``_wide`` instead, behind a marker word no narrow key begins with."""
+    words.sort()
+    if len(words) & 1:
+        words.append(0)
+    return array("I", words).tobytes()
+
+
+_WIDE_MARK = array("Q", [(1 << 64) - 1]).tobytes()
+
+
+def _wide(counts: dict) -> bytes:
+    """``_compact`` with 64-bit words (number << 24 | multiplicity) behind ``_WIDE_MARK``."""
     ids = _item_ids
     words = []
     for k, n in counts.items():
@@ -262,7 +307,7 @@ def _compact(counts: dict) -> bytes:
             raise OverflowError("a hypothesis occurs more than 16,777,215 times")
         words.append(i << 24 | n)
     words.sort()
-    return array("Q", words).tobytes()
+    return _WIDE_MARK + array("Q", words).tobytes()
 
 
 def _shapes(payload: tuple, pl: tuple, shapes: list, colour: dict, memo: dict) -> None:
@@ -273,6 +318,239 @@ def _shapes(payload: tuple, pl: tuple, shapes: list, colour: dict, memo: dict) -
         j += 1
     for pos, ps in pl:
         shapes[pos] = _shape_of(payload[pos], ps, colour, memo)
+
+
+# ---------------------------------------------------------------- the fast path
+#
+# Colour refinement partitions the fresh names alike however a round's colours are encoded:
+# names p and q get one colour exactly when their occurrences, (hypothesis shape under the
+# previous colours, payload position), are the same multiset. ``_numbered_key`` encodes a
+# fact's shape by hashing the term with each name replaced by its colour; the fast path
+# encodes the same information as (the term with every name replaced by one placeholder, the
+# colours of the names in the order they occur): per term, the placeholder term and that
+# order are computed once, and a round costs a tuple hash per fact instead of a walk of it.
+# So both refine to the same partitions round by round, and stop at the same round.
+#
+# When the final colouring is discrete (every name its own colour: the usual case, a fresh
+# name is a request, an activation, a destination, each with facts of its own), the colours
+# themselves name the names: a fact becomes (mode, the term with its names numbered in the
+# order params_of finds them, their colours). That is an injective renaming of the state (so
+# two states with one key are equal up to renaming), and isomorphic states get the same
+# colours (so equal up to renaming gives one key): in that case the key is exact, as
+# ``_numbered_key``'s first-occurrence numbering is, without its sort and its renaming of
+# every fact. A state whose colouring keeps a tie, or with a rule or an inert hypothesis
+# holding a fresh name, takes ``_numbered_key`` as before: the states equal under one path
+# are those equal under the other.
+
+#: term -> (its names in params_of's order (None when it has one), placeholder term, its names
+#: in occurrence order (with repeats; None when it has one), the term with its names numbered
+#: locally, its name when it has one, its first-round code as a linear fact): every fact recurs from state
+#: to state, so this is computed once per distinct fact. Emptied at _MEMO_MAX entries (the
+#: values are hash-consed terms and tuples: recomputing gives the same objects).
+_term_info: dict = {}
+_PLACEHOLDER = CanonParam(-1)
+
+
+def _info(t: Node) -> tuple:
+    r = _term_info.get(t)
+    if r is None:
+        if len(_term_info) >= _MEMO_MAX:
+            _term_info.clear()
+        ps = tuple(params_of(t, {}))
+        abs0, local = _abs_local(t, {p: CanonParam(i) for i, p in enumerate(ps)})
+        if len(ps) == 1:   # (the usual case: one name, no order of occurrence to keep)
+            p0 = ps[0]
+            ps = seq = None
+        else:
+            p0 = None
+            seq = []
+            _occurrences(t, seq)
+            seq = tuple(seq)
+        code = _abs_codes.get(abs0)
+        if code is None:
+            if len(_abs_codes) >= _MEMO_MAX:
+                _abs_codes.clear()
+            code = _abs_codes[abs0] = _code0(LIN, 1, abs0, seq, p0)
+        r = _term_info[t] = (ps, abs0, seq, local, p0, code)
+    return r
+
+
+#: placeholder term -> its first-round code as a linear fact (shared by the facts of one shape)
+_abs_codes: dict = {}
+
+
+def _abs_local(t: Node, ren: dict) -> tuple:
+    """(``t`` with every fresh name replaced by the placeholder, ``t`` renamed by ``ren``), in one walk."""
+    if not t.maxp:
+        return t, t
+    tt = type(t)
+    if tt is Root:
+        h = t.head
+        r = ren.get(h)
+        a0 = []
+        a1 = []
+        for a in t.args:
+            if a.maxp:
+                x, y = _abs_local(a, ren)
+                a0.append(x)
+                a1.append(y)
+            else:
+                a0.append(a)
+                a1.append(a)
+        if r is None:
+            return Root(h, tuple(a0)), Root(h, tuple(a1))
+        return Root(_PLACEHOLDER, tuple(a0)), Root(r, tuple(a1))
+    if tt is Lam:
+        x, y = _abs_local(t.body, ren)
+        return Lam(x), Lam(y)
+    return _rename(t, dict.fromkeys(ren, _PLACEHOLDER), {}), _rename(t, ren, {})
+
+
+def _code0(mode: str, n: int, abs0: Node, seq, p0) -> int:
+    """A fact's code in the first round of refinement (every name of colour 0)."""
+    return hash((mode, n, abs0, 0))
+
+
+def _code(mode: str, n: int, abs0: Node, cols: list) -> int:
+    """A fact's code given the colours of its names in order of occurrence: (mode, n, abs0, c)
+    when they are all one colour c (as a fact with one name always has: ``abs0`` says how
+    many times it occurs), else (mode, n, abs0, the colours). Two facts get one code exactly
+    when they have one shape under the colouring, whatever their number of names."""
+    c = cols[0]
+    for x in cols:
+        if x != c:
+            return hash((mode, n, abs0, tuple(cols)))
+    return hash((mode, n, abs0, c))
+
+
+
+def _occurrences(t: Node, out: list) -> None:
+    """Append the fresh names of ``t`` as they occur, preorder (head, then arguments)."""
+    if not t.maxp:
+        return
+    tt = type(t)
+    if tt is Root:
+        h = t.head
+        if isinstance(h, Param) and h.id > 0:
+            out.append(h)
+        for a in t.args:
+            _occurrences(a, out)
+    elif tt is Lam:
+        _occurrences(t.body, out)
+    else:
+        for f in tt.fields:
+            v = getattr(t, f)
+            if isinstance(v, Node):
+                _occurrences(v, out)
+
+
+#: per mode, a fact without fresh names -> its number in _item_ids
+_static_ids: dict = {LIN: {}, AFF: {}, PERS: {}}
+
+
+def _fast_key(ctx: Context, rounds: int):
+    """The key of a context whose hypotheses with fresh names are all facts and whose colouring
+    ends discrete (see above); None otherwise (``_numbered_key`` decides)."""
+    for r in ctx.rules.values():
+        if any(isinstance(v, Node) and v.maxp for v in r.env):
+            return None
+    for _mode, t in ctx.inert:
+        if t.maxp:
+            return None
+    ids = _item_ids
+    words: list = []
+    items: list = []
+    info_memo = _term_info
+    for mode, d in ((LIN, ctx.lin), (AFF, ctx.aff), (PERS, ctx.pers)):
+        sids = _static_ids[mode]
+        for t, n in d.items():
+            if mode == PERS:
+                n = 1
+            if t.maxp:
+                inf = info_memo.get(t)
+                if inf is None:
+                    inf = _info(t)
+                items.append((mode, n, inf))
+                continue
+            i = sids.get(t)
+            if i is None:
+                k = ("f", mode, (t,))
+                i = ids.get(k)
+                if i is None:
+                    i = ids[k] = len(ids)
+                sids[t] = i
+            if n >= 256 or i >= _NARROW_IDS:
+                return None   # (a wide key: _numbered_key writes it)
+            words.append(i << 8 | n)
+    if ctx.rules or ctx.inert:
+        for k, n in _static_others(ctx).items():
+            i = ids.get(k)
+            if i is None:
+                i = ids[k] = len(ids)
+            if n >= 256 or i >= _NARROW_IDS:
+                return None
+            words.append(i << 8 | n)
+    if not items:
+        return _words_bytes(words)
+    if rounds < 1:
+        return None
+    # the first round (every name of colour 0): each fact's code depends on the fact alone
+    occ: dict = {}
+    for mode, n, (ps, abs0, seq, _local, p0, code) in items:
+        if n != 1 or mode != LIN:
+            code = _code0(mode, n, abs0, seq, p0)
+        if p0 is not None:
+            o = occ.get(p0)
+            if o is None:
+                occ[p0] = [code]
+            else:
+                o.append(code)
+            continue
+        for p in ps:
+            o = occ.get(p)
+            if o is None:
+                occ[p] = [code]
+            else:
+                o.append(code)
+    colour = {p: hash((o[0],)) if len(o) == 1 else hash(tuple(sorted(o))) for p, o in occ.items()}
+    nparams = len(colour)
+    ncolours = len(set(colour.values()))
+    stable = ncolours == 1
+    for _ in range(rounds - 1):
+        if stable or ncolours == nparams:
+            break
+        occ = {p: [] for p in colour}
+        for mode, n, (ps, abs0, seq, _local, p0, _c0) in items:
+            if p0 is not None:
+                occ[p0].append(hash((mode, n, abs0, colour[p0])))
+                continue
+            code = _code(mode, n, abs0, [colour[p] for p in seq])
+            for p in ps:
+                occ[p].append(code)
+        colour = {p: hash(tuple(sorted(o))) for p, o in occ.items()}
+        nnew = len(set(colour.values()))
+        stable = nnew == ncolours
+        ncolours = nnew
+    if ncolours != nparams:
+        return None   # a tie: the first-occurrence numbering decides (_numbered_key)
+    for mode, n, (ps, _abs0, _seq, local, p0, _c0) in items:
+        k = (mode, local, colour[p0]) if p0 is not None else (mode, local, tuple([colour[p] for p in ps]))
+        i = ids.get(k)
+        if i is None:
+            i = ids[k] = len(ids)
+        if n >= 256 or i >= _NARROW_IDS:
+            return None
+        words.append(i << 8 | n)
+    return _words_bytes(words)
+
+
+def _static_others(ctx: Context) -> dict:
+    """The rules and inert hypotheses (none with a fresh name), as ``_numbered_key`` counts them."""
+    counts: dict = {}
+    for it in _other_items(ctx):
+        k = it[:3]
+        counts[k] = counts.get(k, 0) + it[3]
+    return counts
 
 
 def same_state(a: Context, b: Context) -> bool:

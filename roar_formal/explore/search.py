@@ -79,7 +79,11 @@ class MemoryWatch:
         return False
 
 
-#: at most this many frontier states are kept live (the others frozen until they are expanded)
+#: at most this many frontier states are kept live (the others frozen until they are expanded).
+#: (A lower bound would save memory on a wide frontier, e.g. 256: half the bytes per state of a
+#: fan-4 search at the same states/s; but a state frozen and thawed has its bags in the order
+#: re-adding its facts gives, not the order its live self had, and on such a search the order
+#: of enabled steps, hence the numbering of states and edges, then differs: the counts do not.)
 LIVE_FRONTIER = 2048
 
 
@@ -129,6 +133,34 @@ class StateStore:
         return (self[i] for i in range(len(self.items)))
 
 
+class StepStore:
+    """The step of every transition, by edge index. A system with ``pack_step``/``unpack_step``
+    has its steps kept packed (an engine step as one flat tuple of shared pairs: a few hundred
+    bytes a transition instead of a step object with its lists) and unpacked when read."""
+
+    __slots__ = ("items", "pack", "unpack")
+
+    def __init__(self, system):
+        self.items: list = []
+        self.pack = getattr(system, "pack_step", None)
+        self.unpack = getattr(system, "unpack_step", None)
+        if self.pack is None or self.unpack is None:
+            self.pack = self.unpack = None
+
+    def append(self, step) -> None:
+        self.items.append(step if self.pack is None else self.pack(step))
+
+    def __getitem__(self, e: int):
+        x = self.items[e]
+        return x if self.unpack is None else self.unpack(x)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self.items)))
+
+
 class Explorer:
     """Resumable BFS/DFS that records every state and transition in a :class:`StateGraph`."""
 
@@ -150,7 +182,7 @@ class Explorer:
         s0 = system.initial()
         self._add(s0, -1, -1, 0)
         self.frontier: deque[int] = deque([0])
-        self.steps: list = []  # edge index -> engine step (for describing counterexamples)
+        self.steps = StepStore(system)  # edge index -> engine step (for describing counterexamples)
         self.graph.describe_state = lambda i: system.describe(self.states[i])
         self.graph.describe_edge = lambda e: system.describe_step(self.steps[e])
         self.started = time.perf_counter()

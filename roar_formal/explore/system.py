@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Optional, Protocol, Sequence, runtime_checkable
 
 from ..clf.context import Context, FrozenContext
-from ..clf.forward import inst
+from ..clf.forward import Step, inst
 from ..clf.program import Program
 from ..clf.query import show_context
 from ..clf.rules import PERS
@@ -99,6 +99,33 @@ class ClfSystem:
     def thaw(self, frozen: FrozenContext) -> Context:
         return frozen.thaw()
 
+    def pack_step(self, step):
+        """A step as the explorer keeps it (one per transition): an engine :class:`Step` as one
+        flat tuple whose (mode, fact) pairs are shared with every other step that has them (the
+        facts recur from transition to transition); any other step as it is. The bindings are
+        not kept: what reads a transition's step (describing it, the ROAR narration and
+        events, replay, reduction) reads its rule, template and facts, never its slot values
+        (a step read back unpacked has none, as a step shipped by the distributed search)."""
+        if type(step) is not Step:
+            return step
+        consumed = step.consumed
+        pairs = _pairs
+        if len(pairs) >= _PAIRS_MAX:
+            pairs.clear()
+        out = [step.rule, step.template, step.ctx_rule, len(consumed)]
+        for pr in consumed:
+            out.append(pairs.setdefault(pr, pr) if type(pr) is tuple else pr)
+        for pr in step.produced:
+            out.append(pairs.setdefault(pr, pr) if type(pr) is tuple else pr)
+        return PackedStep(out)
+
+    def unpack_step(self, packed):
+        """The step ``pack_step`` packed (a new :class:`Step` equal to the one taken)."""
+        if type(packed) is not PackedStep:
+            return packed
+        n = packed[3]
+        return Step(packed[0], packed[1], (), list(packed[4:4 + n]), packed[2], list(packed[4 + n:]))
+
     def _successor(self, state: Context, choice) -> Successor:
         nxt, step = self.program.successor(state, choice)
         return Successor(choice.rule, self._group(choice), self._progress(choice.rule), nxt, step)
@@ -130,7 +157,13 @@ class ClfSystem:
         return self._group(choice)
 
     def _progress(self, rule: str) -> bool:
-        return is_progress(self.options, rule)
+        memo = self.__dict__.get("_progress_memo")
+        if memo is None or memo[0] != self.options.progress_rules:
+            memo = self._progress_memo = (self.options.progress_rules, {})
+        got = memo[1].get(rule)
+        if got is None:
+            got = memo[1][rule] = is_progress(self.options, rule)
+        return got
 
     def _group(self, choice) -> str:
         return step_group(self.program, self.options, choice)
@@ -146,6 +179,19 @@ class ClfSystem:
         for m, x in step.produced:
             produced.append(_mode(m) + (show(x) if not hasattr(x, "source") else "(" + show(x.source) + ")"))
         return {"rule": step.rule, "consumed": consumed, "produced": produced}
+
+
+class PackedStep(tuple):
+    """An engine step packed by :meth:`ClfSystem.pack_step`: (rule, template, context rule,
+    number consumed, *consumed pairs, *produced pairs). A tuple of its own type, so
+    that it is told from a step a system keeps as it is."""
+
+    __slots__ = ()
+
+
+#: (mode, fact) -> itself: the pairs packed steps share. Emptied when it reaches _PAIRS_MAX.
+_pairs: dict = {}
+_PAIRS_MAX = 200_000
 
 
 def _mode(m: str) -> str:
