@@ -56,6 +56,9 @@ class StateGraph:
     # groups enabled at a state by steps a reduced expansion left out: state id -> group ids
     # (weak fairness reads every enabled group, expanded or not)
     hidden_enabled: dict = field(default_factory=dict)
+    # bitstate search: per state, its transitions into states the bit array took as visited; they are
+    # counted (a state with some is not quiescent) but not recorded, as their targets have no id
+    unrecorded: Optional[dict] = None
     complete: bool = False  # every reachable state was expanded
     stop_reason: str = ""
     describe_state: Optional[Callable[[int], list[str]]] = None  # state id -> printable lines
@@ -121,4 +124,13 @@ class StateGraph:
         return edges
 
     def out_degree(self) -> np.ndarray:
-        return np.bincount(self.arrays()["src"], minlength=self.n_states)
+        deg = np.bincount(self.arrays()["src"], minlength=self.n_states)
+        if self.unrecorded:
+            for s, k in self.unrecorded.items():
+                deg[s] += k
+        return deg
+
+    @property
+    def n_unrecorded(self) -> int:
+        """Transitions a bitstate search counted but did not record (0 for every other search)."""
+        return sum(self.unrecorded.values()) if self.unrecorded else 0

@@ -10,6 +10,8 @@ incomplete graph are reported as such, never as "verified".
 
 from __future__ import annotations
 
+import hashlib
+import math
 import os
 import resource
 import time
@@ -19,6 +21,19 @@ from typing import Callable, Optional
 
 from .graph import StateGraph
 from .system import TransitionSystem
+
+
+#: bitstate hashing: bits in the array by default (16 MiB), and bits set per state (SPIN's -k3)
+DEFAULT_BITS = 1 << 27
+BIT_HASHES = 3
+
+
+def _bit_positions(key, bits: int) -> tuple:
+    """A state's BIT_HASHES positions in a bit array of ``bits`` bits: double hashing on a 128-bit
+    BLAKE2 digest of the key's hash (equal keys, equal hashes, within one process)."""
+    d = hashlib.blake2b(hash(key).to_bytes(8, "little", signed=True), digest_size=16).digest()
+    h1, h2 = int.from_bytes(d[:8], "little"), int.from_bytes(d[8:], "little") | 1
+    return tuple((h1 + i * h2) % bits for i in range(BIT_HASHES))
 
 
 @dataclass
@@ -165,18 +180,31 @@ class Explorer:
     """Resumable BFS/DFS that records every state and transition in a :class:`StateGraph`."""
 
     def __init__(self, system: TransitionSystem, order: str = "bfs",
-                 on_progress: Optional[Callable[[dict], None]] = None, visited: str = "exact"):
+                 on_progress: Optional[Callable[[dict], None]] = None, visited: str = "exact",
+                 bits: int = DEFAULT_BITS):
         if order not in ("bfs", "dfs"):
             raise ValueError("order must be 'bfs' or 'dfs'")
-        if visited not in ("exact", "hash"):
-            raise ValueError("visited must be 'exact' or 'hash'")
+        if visited not in ("exact", "hash", "bitstate"):
+            raise ValueError("visited must be 'exact', 'hash' or 'bitstate'")
         #: hash compaction (Holzmann): a visited state is remembered by a 64-bit hash of its key,
         #: not the key; two states with one hash are taken for one (see omission_probability)
         self.hashed = visited == "hash"
+        #: bitstate hashing (Holzmann's supertrace): a visited state is remembered by BIT_HASHES bits
+        #: of a bit array; a state whose bits are all set is taken as visited. The graph keeps the
+        #: discovery tree (parents, shortest paths) and counts the other transitions per state
+        #: without recording them, so it decides properties read on states, not cycles.
+        self.bitstate: Optional[bytearray] = None
+        if visited == "bitstate":
+            if bits < 1024:
+                raise ValueError("a bit array needs at least 1024 bits")
+            self.bits = bits
+            self.bitstate = bytearray((bits + 7) // 8)
         self.system = system
         self.order = order
         self.on_progress = on_progress
         self.graph = StateGraph()
+        if self.bitstate is not None:
+            self.graph.unrecorded = {}
         self.states = StateStore(system)  # state id -> state (kept frozen when the system can)
         self.ids: dict = {}
         s0 = system.initial()
@@ -203,22 +231,52 @@ class Explorer:
 
     def _key(self, state):
         k = self.system.key(state)
+        if self.bitstate is not None:
+            return _bit_positions(k, self.bits)
         return hash(k) if self.hashed else k
 
     def _add(self, state, parent: int, edge: int, depth: int) -> int:
         sid = self.graph.add_state(parent, edge, depth)
         self.states.append(state)
-        self.ids[self._key(state)] = sid
+        k = self._key(state)
+        if self.bitstate is not None:
+            self._seen(k)   # sets its bits
+        else:
+            self.ids[k] = sid
         return sid
+
+    def _seen(self, positions) -> bool:
+        """Bitstate: were all of a state's bits set already? Sets them."""
+        bs = self.bitstate
+        seen = True
+        for b in positions:
+            byte, bit = b >> 3, 1 << (b & 7)
+            if not bs[byte] & bit:
+                seen = False
+                bs[byte] |= bit
+        return seen
 
     def omission_probability(self) -> float:
         """Under hash compaction, a bound on the probability that two of the states visited share
         a hash, so that one was taken for the other and never explored: n(n-1)/2 pairs, each
-        colliding with probability 2^-64 (0 for an exact search)."""
+        colliding with probability 2^-64. Under bitstate hashing, the probability that a state not
+        yet visited is taken for a visited one at the end of the search, (1 - e^(-kn/m))^k for n
+        states, m bits and k bits per state (it was lower earlier). 0 for an exact search."""
+        n = self.graph.n_states
+        if self.bitstate is not None:
+            return (1.0 - math.exp(-BIT_HASHES * n / self.bits)) ** BIT_HASHES
         if not self.hashed:
             return 0.0
-        n = self.graph.n_states
         return min(1.0, n * (n - 1) / 2 / 2.0 ** 64)
+
+    def expected_omissions(self) -> float:
+        """Bitstate: the expected number of states taken for visited ones while the n states were
+        added (the sum of the per-state probability as the array filled), 0 otherwise."""
+        if self.bitstate is None:
+            return 0.0
+        n, m, k = self.graph.n_states, self.bits, BIT_HASHES
+        steps = min(n, 1000)
+        return sum((1.0 - math.exp(-k * (i + 0.5) * n / steps / m)) ** k for i in range(steps)) * n / max(steps, 1)
 
     def run(self, budget: Budget = Budget()) -> StateGraph:
         g = self.graph
@@ -249,6 +307,20 @@ class Explorer:
                     self._rng.shuffle(succs)
                 keys = [self._key(x.state) for x in succs]
             for succ, k in zip(succs, keys):
+                if self.bitstate is not None:
+                    if self._seen(k):   # taken as visited: counted, not recorded (it has no id here)
+                        un = g.unrecorded
+                        un[s] = un.get(s, 0) + 1
+                        continue
+                    t = len(self.states)
+                    e = g.add_edge(s, t, succ.label, succ.group, succ.progress)
+                    self.steps.append(succ.step)
+                    sid = g.add_state(s, e, depth)
+                    self.states.append(succ.state)
+                    self.frontier.append(sid)
+                    if len(self.frontier) > LIVE_FRONTIER:
+                        self.states.done(sid)
+                    continue
                 t = self.ids.get(k)
                 new = t is None
                 if new:

@@ -887,7 +887,8 @@ class Exploration:
 
     @property
     def transitions(self) -> int:
-        return self.result.graph.n_edges
+        g = self.result.graph
+        return g.n_edges + g.n_unrecorded   # a bitstate search counts some without recording them
 
     @property
     def complete(self) -> bool:
@@ -959,7 +960,7 @@ class Exploration:
         out = {"job": r.job.name, "file": str(r.job.path),
                "model": str(r.job.model if not r.job.is_roar else r.job.spec), "ok": r.ok,
                "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states,
-               "transitions": r.graph.n_edges, "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4),
+               "transitions": r.graph.n_edges + r.graph.n_unrecorded, "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4),
                "memory_mb": round(r.memory_mb, 1), "mismatches": r.mismatches, "verdicts": {}}
         robot = self.robot
         if robot is not None:
@@ -969,9 +970,10 @@ class Exploration:
                                            for p, av, rv, why in robot.comparison]}
         for p, v in r.verdicts.items():
             d = {"status": v.status, "message": v.message, "expected": r.job.expect.get(p)}
-            if "visited" in v.details:   # hash compaction: what the verdict is worth
-                d["visited"] = v.details["visited"]
-                d["omission_probability"] = v.details["omission_probability"]
+            if "visited" in v.details:   # hash compaction, bitstate: what the verdict is worth
+                for k in ("visited", "omission_probability", "expected_omissions", "bits", "unrecorded_transitions"):
+                    if k in v.details:
+                        d[k] = v.details[k]
             if v.counterexample is not None:
                 d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r),
                                        "report": counterexample_report(r, p)}

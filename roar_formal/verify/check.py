@@ -216,7 +216,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     _mark_reduction(job, verdicts, reduction)
     mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
                   if verdicts[p].status != want]
-    backend = "general" if job.visited == "exact" else "general, hash compaction"
+    backend = "general" + VISITED_NOTE[job.visited]
     if getattr(job, "cluster", None) is not None:
         from .cluster import cluster_note
         backend += cluster_note(explorer)
@@ -311,7 +311,7 @@ def make_explorer(job: Job, system, on_progress):
     if getattr(job, "cluster", None) is not None:
         from .cluster import make_explorer as on_the_cluster
         return on_the_cluster(job, system, on_progress, explorer_order(job))
-    return Explorer(system, explorer_order(job), on_progress, job.visited)
+    return Explorer(system, explorer_order(job), on_progress, job.visited, job.bits)
 
 
 def explorer_order(job: Job) -> str:
@@ -362,10 +362,18 @@ def swarm(job: Job, t0: float, explore, options: Options):
     return explorer, graph, verdicts
 
 
+#: what a job's visited-set mode adds to its backend's name
+VISITED_NOTE = {"exact": "", "hash": ", hash compaction", "bitstate": ", bitstate"}
+
+
 def hashed_note(explorer, verdicts: dict) -> None:
     """Under hash compaction, say what each verdict is worth: a "holds" is a bug-hunting result
     with a bound on the probability that a state was missed, never a proof; a counterexample is
-    real once replay confirms it (a collision could join two paths that are not one)."""
+    real once replay confirms it (a collision could join two paths that are not one). Under
+    bitstate hashing the same, with the probability that a new state was taken for a visited one."""
+    if getattr(explorer, "bitstate", None) is not None:
+        bitstate_note(explorer, verdicts)
+        return
     if not getattr(explorer, "hashed", False):
         return
     p = explorer.omission_probability()
@@ -377,6 +385,21 @@ def hashed_note(explorer, verdicts: dict) -> None:
                           f"most {p:.1e}]")
         elif v.status == "violated":
             v.message += " [hash compaction: replay the trace to confirm it]"
+
+
+def bitstate_note(explorer, verdicts: dict) -> None:
+    g = explorer.graph
+    p, lost = explorer.omission_probability(), explorer.expected_omissions()
+    what = (f"{g.n_states:,} states in {explorer.bits:,} bits, 3 bits each: at the end a new state was taken "
+            f"for a visited one with probability {p:.1e}; about {lost:,.1f} states were so taken, and their "
+            f"successors may be missed too")
+    for v in verdicts.values():
+        v.details.update(visited="bitstate", omission_probability=p, expected_omissions=lost, bits=explorer.bits,
+                         unrecorded_transitions=g.n_unrecorded)
+        if v.status == "holds":
+            v.message += f" [bitstate: not verified; {what}]"
+        elif v.status == "violated":
+            v.message += " [bitstate: a real path; replay the trace to confirm it]"
 
 
 def search_rounds(job: Job, t0: float, explorer, decide):
@@ -462,8 +485,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
             return ex, lambda g: decide(g, lambda sid: ex.states[sid])
 
         _explorer, graph, verdicts = _search(job, t0, explore, options)
-        if job.visited == "hash":
-            backend += ", hash compaction"
+        backend += VISITED_NOTE[job.visited]
         if getattr(job, "cluster", None) is not None:
             from .cluster import cluster_note
             backend += cluster_note(_explorer)

@@ -150,7 +150,7 @@ def render_index(results, charts: dict, traces: dict, title: str = "roar-verify 
                     f'<span class="{cls}">({word})</span></h2>')
         req = f", request <code>{escape(str(job.request))}</code>" if job.is_roar and job.request else ""
         body.append(f"<p>model <code>{escape(str(model))}</code>{req}; {r.graph.n_states:,} states, "
-                    f"{r.graph.n_edges:,} transitions, {r.seconds:.2f} s, backend {escape(str(r.backend))}.</p>")
+                    f"{r.graph.n_edges + r.graph.n_unrecorded:,} transitions, {r.seconds:.2f} s, backend {escape(str(r.backend))}.</p>")
         robot = getattr(r, "robot", None)
         if robot is not None:
             body.append(f"<p>robot: {escape(robot.describe())}</p>")

@@ -91,7 +91,8 @@ class Job:
     search: str = "bfs"
     canonical: bool = True
     reduction: bool = False  # partial-order reduction (general backend, every property)
-    visited: str = "exact"   # "hash": hash compaction (a bug-hunting mode; a "holds" is no proof)
+    visited: str = "exact"   # "hash": hash compaction, "bitstate": bitstate hashing (bug-hunting modes: a "holds" is no proof)
+    bits: int = 1 << 27      # visited = "bitstate": bits in the array ([bitstate] bits)
     swarm_runs: int = 8             # search = "swarm": how many randomized depth-first searches
     swarm_states: int = 10_000      # ... and the states each may visit
     spec: Optional[Path] = None        # a ROAR spec (instead of a .clf model)
@@ -541,7 +542,8 @@ def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
     _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
-                     "canonical", "reduction", "visited", "swarm", "bounds", "expect", "robot", "faults", "time",
+                     "canonical", "reduction", "visited", "swarm", "bitstate", "bounds", "expect", "robot", "faults",
+                     "time",
                      "cluster"},
                  "a job file", path)
     base = path.parent
@@ -600,16 +602,28 @@ def load_job(path: str | Path) -> Job:
                             Pos(str(path), _line_of(path, "properties"), 1))
         load_properties((base / p).resolve(), job.props)
     for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs", "swarm", "distributed")),
-                         ("visited", ("exact", "hash"))):
+                         ("visited", ("exact", "hash", "bitstate"))):
         if key in d:
             v = _typed(d, key, str, path, "a job file")
             if v not in allowed:
                 raise RoarError(f"'{key}' must be one of {', '.join(allowed)}, not '{v}'",
                                 Pos(str(path), _line_of(path, key), 1))
             setattr(job, key, v)
-    if job.visited == "hash" and job.backend == "ground":
-        raise RoarError("visited = \"hash\" is a mode of the general backend (the ground backend keeps its "
-                        "states compact and exact already): drop one of them", Pos(str(path), _line_of(path, "visited"), 1))
+    if job.visited in ("hash", "bitstate") and job.backend == "ground":
+        raise RoarError(f"visited = \"{job.visited}\" is a mode of the general backend (the ground backend keeps "
+                        "its states compact and exact already): drop one of them",
+                        Pos(str(path), _line_of(path, "visited"), 1))
+    if "bitstate" in d:
+        bt = _typed(d, "bitstate", dict, path, "a job file")
+        _expect_keys(bt, {"bits"}, "[bitstate]", path)
+        if job.visited != "bitstate":
+            raise RoarError("a [bitstate] table needs visited = \"bitstate\"", Pos(str(path), _line_of(path, "bitstate"), 1))
+        if "bits" in bt:
+            v = bt["bits"]
+            if isinstance(v, bool) or not isinstance(v, int) or not 1024 <= v <= 1 << 40:
+                raise RoarError(f"[bitstate] bits is the size of the bit array, a whole number from 1,024 to 2^40, "
+                                f"not {v!r}"[:300], _value_pos(path, "bits"))
+            job.bits = v
     if "swarm" in d:
         sw = _typed(d, "swarm", dict, path, "a job file")
         _expect_keys(sw, {"runs", "max_states"}, "[swarm]", path)
@@ -684,10 +698,34 @@ def load_job(path: str | Path) -> Job:
     if job.search == "swarm" and job.robot is not None:
         raise RoarError("search = \"swarm\" is not available for robot-backed jobs: use bfs or dfs",
                         Pos(str(path), _line_of(path, "search"), 1))
-    if job.visited == "hash" and job.robot is not None:
-        raise RoarError("visited = \"hash\" is not available for robot-backed jobs (their states pair a model "
-                        "state with the robot's): remove it", Pos(str(path), _line_of(path, "visited"), 1))
+    if job.visited in ("hash", "bitstate") and job.robot is not None:
+        raise RoarError(f"visited = \"{job.visited}\" is not available for robot-backed jobs (their states pair a "
+                        "model state with the robot's): remove it", Pos(str(path), _line_of(path, "visited"), 1))
+    if job.visited == "bitstate":
+        _bitstate_refusals(job, path)
     return job
+
+
+def _bitstate_refusals(job: Job, path: Path) -> None:
+    """What a bitstate search cannot decide: it keeps the discovery tree and counts the other
+    transitions without their targets, so properties read on cycles or on every step are out."""
+    where = Pos(str(path), _line_of(path, "visited"), 1)
+    cycles = [p for p in job.props.check if p in ("livelock", "mission-completion")]
+    cycles += [n for n, f in job.props.temporal.items() if n in job.props.check and f.form in ("eventually", "leads-to")]
+    if cycles:
+        extra = " (a default property of a spec: name the properties to check, e.g. [expect] deadlock)" \
+            if job.props.defaulted else ""
+        raise RoarError(f"visited = \"bitstate\" decides properties read on states; {', '.join(cycles)} "
+                        f"need{'s' if len(cycles) == 1 else ''} the cycles of the graph, which a bitstate search "
+                        f"does not record{extra}: use visited = \"hash\"", where)
+    if any(f.events for f in job.props.spec_never):
+        raise RoarError("visited = \"bitstate\" does not record every step, so invariants over events "
+                        "(primitive ... starts, constraint sent to ...) cannot be checked: use visited = \"hash\"",
+                        where)
+    for bad, why in ((job.reduction, "partial-order reduction (its cycle proviso reads the visited set)"),
+                     (job.search in ("swarm", "distributed"), f"search = \"{job.search}\"")):
+        if bad:
+            raise RoarError(f"visited = \"bitstate\" is not available with {why}", where)
 
 
 def _cluster_setup(d: dict, path: Path, job: Job):

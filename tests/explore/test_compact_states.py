@@ -128,7 +128,7 @@ def test_hash_compaction_really_forgets_colliding_states():
     assert ex.graph.n_states == 1 and ex.graph.n_edges >= 1 and ex.graph.complete
     assert ex.omission_probability() == 0.0   # (one state: no pair to collide; the bound is about n states)
     with pytest.raises(ValueError, match="visited must be"):
-        Explorer(system, visited="bitstate")
+        Explorer(system, visited="bits")
 
 
 def _job(tmp_path, name: str, extra: str) -> "Path":
@@ -175,7 +175,7 @@ def test_a_swarm_member_that_covers_everything_gives_the_complete_verdicts(tmp_p
 
 
 @pytest.mark.parametrize("extra,message,line", [
-    ('visited = "hashed"\n', "'visited' must be one of exact, hash, not 'hashed'", 3),
+    ('visited = "hashed"\n', "'visited' must be one of exact, hash, bitstate, not 'hashed'", 3),
     ('visited = "hash"\nbackend = "ground"\n', 'visited = "hash" is a mode of the general backend', 3),
     ('[swarm]\nruns = 3\n', 'a [swarm] table needs search = "swarm"', 3),
     ('search = "swarm"\n[swarm]\nruns = 0\n', "[swarm] runs must be a whole number, at least 1, not 0", 5),
