@@ -345,6 +345,24 @@ class CompiledModel:
         return self._program
 
 
+#: why a function call is refused where the logic layer reads an expression symbolically
+#: (docs/semantics.md, "Where the logic layer calls no function")
+_NO_CALL = {
+    "post": "a task post-condition: the logic layer proves at compile time, symbolically, which tasks' "
+            "post-conditions entail a constraint, and a function's value exists only once it is called "
+            "(a task's pre-conditions and a recipe's conditions may call functions)",
+    "constraint": "a constraint: a constraint is a predicate on variables, which the target agent matches "
+                  "with its tasks' post-conditions and checks again and again (at the end, while an ensure "
+                  "holds) on its own; a call has a value only where a recipe makes it: call it in the recipe "
+                  "and send the value in a where clause",
+    "request": "a request: a request from outside has no functional layer to call; write the value",
+    "last-error": "the constraint of last_error?(C): C names a constraint a recipe sends, and a constraint "
+                  "calls no function, so no failure could ever be of C",
+    None: "an expression the logic layer reads symbolically (the logic layer evaluates calls only in task "
+          "pre-conditions)",
+}
+
+
 class _Ctx:
     """Compilation state of one statement: cells read, sites hoisted before it, locals.
 
@@ -368,6 +386,7 @@ class _Ctx:
         self.ran: set[str] = set()         # cells whose task was run
         self.pushed = 0
         self.logic: dict[str, str] = {}    # logic variables of a domain rule -> CLF variables (pexps)
+        self.purpose: Optional[str] = None  # what a snapshot expression is (for the reason of a refusal)
 
     def var(self, cell: str) -> str:
         if self.snapshot:
@@ -407,6 +426,15 @@ class _Compiler:
         self.crashes = crashes if crashes else None
         self.crash_agents: set[str] = set(crashes.agents) if crashes else set()
         self.checker_sites: set[str] = set()      # calls hoisted in a recipe's pre-condition check
+        self.start_sites: set[str] = set()        # sites of the initialisers run at start
+        # a constraint sent with another where clause than its first: a variant constant of its
+        # own (the same identity number: the same constraint for the error context)
+        self.variant_of: dict[str, str] = {}
+        self.variants: dict[tuple[str, tuple[str, ...]], str] = {}
+        self.sent_variants: dict[tuple[str, str, str], set[str]] = {}   # (agent, task, recipe) -> variants
+        # agent -> its task pre-conditions that call the functional layer: (pseudo-cell, condition, task);
+        # the logic layer evaluates them before each decision (docs/semantics.md, "The logic layer")
+        self.logic_pres: dict[str, list[tuple[str, a.Expr, a.Task]]] = {}
         self.guards: dict[str, tuple[str, str]] = {}   # compiled rule -> (agent, how its request is found)
         self.spec = spec
         self.checked = checked   # the types the static checks found (the compiler re-checks nothing)
@@ -469,6 +497,8 @@ class _Compiler:
 
     def value(self, v, ty: Optional[str]) -> str:
         """A Python value as a CLF value term (for initial values and outcomes)."""
+        if isinstance(v, _Opaque):
+            return f"(vopq {v.handle})"
         if isinstance(v, bool):
             return "(vbool tt)" if v else "(vbool ff)"
         if isinstance(v, (int, float, Fraction)):
@@ -539,9 +569,8 @@ class _Compiler:
         else:
             raise UnsupportedError(f"call of '{e.qualified}'", e.pos)
         if cx.snapshot:
-            raise UnsupportedError(
-                f"a function call ('{e.qualified}') in a task pre-condition or a constraint "
-                f"(the logic layer decides these on the agent's variables alone)", e.pos)
+            raise UnsupportedError(f"a function call ('{e.qualified}') in " + _NO_CALL.get(cx.purpose, _NO_CALL[None]),
+                                   e.pos)
         sub = cx.sub()
         args = [self.pexp(x, sub) for x in e.args]
         fc = self.fn_c(owner, e.name)
@@ -602,7 +631,7 @@ class _Compiler:
                 raise UnsupportedError(f"operator '{e.op}'", e.pos)
             return f"(pbin {op} {self.pexp(e.left, cx)} {self.pexp(e.right, cx)})"
         if isinstance(e, a.LastError):
-            c = self.cst_for(cx.agent, e.constraint, None)
+            c = self.cst_for(cx.agent, e.constraint, None, purpose="last-error")
             return f"(plast {c})"
         raise UnsupportedError(f"expression {format_expr(e)}", e.pos)
 
@@ -620,12 +649,13 @@ class _Compiler:
         return "".join(" -o " + p for p in prem), "".join(" * " + o for o in outs)
 
     # ------------------------------------------------------------ constraints
-    def cst_for(self, sender: a.Agent, pred: a.Expr, target: Optional[str]) -> str:
+    def cst_for(self, sender: a.Agent, pred: a.Expr, target: Optional[str], purpose: str = "constraint") -> str:
         """The constant of a constraint: the same (target, predicate) gives the same constant."""
         tmp = a.Constraint(pred, (), pos=pred.pos)
         target = target or tmp.target(sender.name) or sender.name
         tag = self.spec.agent(target)
         pcx = _Ctx(self, tag, [], snapshot=True)
+        pcx.purpose = purpose
         # the sender's unqualified names are its own variables
         text = self.pexp(self._qualify(pred, sender.name), pcx)
         key = (target, text)
@@ -699,7 +729,15 @@ class _Compiler:
             site_kw["period_ms"] = float(st.period.value)
         if isinstance(st, (a.Make, a.Ensure)):
             c = st.constraint
-            site_kw["cst"] = self.cst_for(ag, c.expr, c.target(ag.name))
+            for n in a.walk(c.expr):
+                if isinstance(n, a.Name) and n.name in env:
+                    raise UnsupportedError(
+                        f"a local ('{n.name}') in a constraint: a constraint is a predicate on variables, "
+                        f"which the target agent decides and checks again on its own, after the recipe's "
+                        f"locals are gone; send the value in a where clause", n.pos)
+            target = c.target(ag.name) or ag.name
+            site_kw["cst"] = self.where_cst(self.cst_for(ag, c.expr, c.target(ag.name)),
+                                            [self.cell(target, w) for w in c.writes(ag.name)])
         s = self.site(kind_name or kind, ag, task.name, r.name, st.pos, text, **site_kw)
         division_sites = None
         E = cx.envpat()
@@ -955,17 +993,37 @@ class _Compiler:
                     f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0) -o act I R0 T0 Rc0 N\n"
                     f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
 
+    def where_cst(self, base: str, cells: list[str]) -> str:
+        """The constant a send of constraint ``base`` with a where clause writing ``cells`` uses:
+        ``base`` itself for the first shape sent (and every send of it), a variant ``base_wK`` for
+        another shape. A variant is decided, written and checked as its base is, with its own
+        where cells; it has the base's identity number, so that the error context, ``last_error?``
+        and the constraint domains see one constraint (hyper: the same predicate)."""
+        known = self.where_cells.setdefault(base, cells)
+        if known == cells:
+            return base
+        key = (base, tuple(cells))
+        v = self.variants.get(key)
+        if v is None:
+            v = f"{base}_w{1 + sum(1 for b in self.variant_of.values() if b == base)}"
+            self.variants[key] = v
+            self.variant_of[v] = base
+            self.cst_pexp[v] = self.cst_pexp[base]
+            self.cst_ast[v] = self.cst_ast[base]
+            self.model.csts[v] = self.model.csts[base]
+            self.where_cells[v] = cells
+        return v
+
     def send(self, ag: a.Agent, st, cx: _Ctx, s: str, head: str) -> None:
         """make / ensure (4.4, 8.3): a fresh request with the where values, owned by the activation."""
         c = st.constraint
         target = c.target(ag.name)
-        cst = self.cst_for(ag, c.expr, target)
         writes = c.writes(ag.name)
         wvals = [self.pexp(v, cx) for v in writes.values()]
         cells = [self.cell(target, w) for w in writes]
-        known = self.where_cells.setdefault(cst, cells)
-        if known != cells:
-            raise UnsupportedError("the same constraint sent with different where clauses", st.pos)
+        cst = self.where_cst(self.cst_for(ag, c.expr, target), cells)
+        if cst in self.variant_of:
+            self.sent_variants.setdefault((ag.name, cx.task, cx.recipe), set()).add(cst)
         self.note_where_hyps(cst, cells, list(writes.values()))
         prem, outs = self.premises(cx)
         names = [f"W{i + 1}" for i in range(len(wvals))]
@@ -1039,6 +1097,11 @@ class _Compiler:
             o.append(f"alt_{rc}_{c} : alt {rc} {c} {'tt' if others else 'ff'}.")
             if others:
                 self.alternative_rules(ag, rc, c, others)
+            for v in sorted(x for x in self.sent_variants.get((ag.name, t.name, r.name), ())
+                            if self.variant_of[x] == c):   # (the same constraint, another where clause)
+                o.append(f"alt_{rc}_{v} : alt {rc} {v} {'tt' if others else 'ff'}.")
+                if others:
+                    self.alternative_rules(ag, rc, v, others)
 
     def alternative_rules(self, ag: a.Agent, rc: str, c: str, others: list[a.Recipe]) -> None:
         """The calling-context search at an activation of ``rc`` holding a request of ``c``: it
@@ -1088,6 +1151,7 @@ class _Compiler:
                     key = f"{ag.name}::{td.name}"
                     m.structs[key] = [f.name for f in td.fields]
                     self.field_types[key] = {f.name: self.checked.structs[key][f.name] for f in td.fields}
+        self.initial_values()
         o = self.out
         o.append("\n% ================================================================ compiled spec")
         ids = 0
@@ -1116,9 +1180,14 @@ class _Compiler:
             for t in ag.tasks:
                 tc = self.task_c(ag.name, t.name)
                 pcx = _Ctx(self, ag, [], snapshot=True)
-                pcx.task, pcx.recipe = t.name, ""
+                pcx.task, pcx.recipe, pcx.purpose = t.name, "", "post"
                 qualified = [self._qualify(e, ag.name) for e in t.pre]
-                pres = [self.pexp(q, pcx) for q in qualified]
+                # a pre-condition that calls a function is split into its conjuncts: those that call
+                # one are evaluated by the logic activation, the others are ordinary (sub-goaled)
+                qualified = [x for q in qualified
+                             for x in (a.conjuncts(q) if any(True for _ in a.calls(q)) else [q])]
+                pres = [self.pexp(q, pcx) if not any(True for _ in a.calls(q)) else self.logic_pre(ag, t, q)
+                        for q in qualified]
                 for p, q in zip(pres, qualified):
                     self.predicates[p] = ag.name
                     self.predicate_exprs.setdefault(p, (ag, q))
@@ -1139,30 +1208,31 @@ class _Compiler:
             for t in ag.tasks:
                 for r in t.recipes:
                     self.recipe(ag, t, r)
+        if self.logic_pres:   # (the logic activation's phase and snapshot, only when a spec needs them)
+            o.append("h_lq : inst -> phase.\nlsnap : inst -> val -> type.")
+        started = self.start_code()   # initialisers run when the agents start (4.2)
         # the request
         top = spec.agent(request.target())
-        req_cst = self.cst_for(top, request.expr, top.name)
+        req_cst = self.cst_for(top, request.expr, top.name, purpose="request")
         m.request_cst, m.request_agent = req_cst, top.name
         writes = request.writes()
         cells = [self.cell(top.name, w) for w in writes]
-        if self.where_cells.get(req_cst, cells) != cells:
-            raise UnsupportedError("the request's where clause differs from the one its recipes use",
-                                   request.pos)
-        self.where_cells[req_cst] = cells
-        self.note_where_hyps(req_cst, cells, list(writes.values()))
-        wvals = []
-        for v in writes.values():
-            wvals.append(self.const_value(v))
+        req_cst = self.where_cst(req_cst, cells)   # (a where clause its recipes do not use: a variant)
+        m.request_cst = req_cst
+        values = [self.request_value(v) for v in writes.values()]
+        self.note_where_hyps(req_cst, cells, values)
+        wvals = [self.const_value(v) for v in values]
         # constraints: identities, predicates, select and final rules
-        decls = []
-        for i, (c, (target, _)) in enumerate(sorted(m.csts.items()), start=1):
-            decls.append(f"{c} : cst.")
-            decls.append(f"id_{c} : cst_id {c} {i}.")
-        decls += [f"{fc} : fn." for fc in sorted(m.functions)]
-        o[hdr:hdr] = decls
         self.key_hypotheses()
         for c in sorted(self.cst_pexp):
             self.constraint_rules(c)
+        decls = []   # (after the constraints' rules: a logic activation calls functions)
+        cst_ids = {c: i for i, c in enumerate((c for c in sorted(m.csts) if c not in self.variant_of), start=1)}
+        for c in sorted(m.csts):
+            decls.append(f"{c} : cst.")
+            decls.append(f"id_{c} : cst_id {c} {cst_ids[self.variant_of.get(c, c)]}.")
+        decls += [f"{fc} : fn." for fc in sorted(m.functions)]
+        o[hdr:hdr] = decls
         if self.crashes:
             o.extend(self.crash_declarations(sum(len(ag.tasks) for ag in spec.agents)))
         if self.clock:
@@ -1190,6 +1260,9 @@ class _Compiler:
                 failed = "(vcons (vtsk t_ep0) vnil)"
             if not self.crashes.scheduled:       # the crash plan is decided first (crash_plan_...)
                 sent = "cgate z r0"
+        if started:   # the agents start first: their initialisers that call the functional layer
+            init.append(started)
+            sent = "sgate r0"
         init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * {sent} * ppz r0 ff"
                     f" * hs r0 h_select vnil {failed} vnil (vsome {self._list([f'(vpair (vcell {c}) {v})' for c, v in zip(cells, wvals)])})")
         m.init = "Exists r0. " + " * ".join(init)
@@ -1258,6 +1331,8 @@ class _Compiler:
         for i, rule in enumerate(self.rules):
             name = rule.split(" : ", 1)[0]
             m = re.match(r"pp(\d+)_", name)
+            if m and f"pp{m.group(1)}" in {x.split("_")[0] for x in self.start_sites}:
+                continue   # (the start: before any request, so before any crash)
             if m:
                 site = by_num[m.group(1)]
                 agent = site.agent
@@ -1306,15 +1381,231 @@ class _Compiler:
             return f"(vnum {num_lit(-Fraction(repr(v)) if isinstance(v, float) else -v)})"
         raise UnsupportedError(f"a request's where value must be a literal, not '{format_expr(e)}'", e.pos)
 
+    def request_value(self, e: a.Expr) -> a.Expr:
+        """A where value of the request from outside: a literal, or a constant expression (no
+        variable, no call), evaluated here as an initial value is (:func:`_fold`) and given as the
+        literal of its value."""
+        if self.literal(e) is not None:
+            return e
+        for n in a.walk(e):
+            if isinstance(n, (a.Name, a.Remote, a.Call)):
+                why = (f"calls '{n.qualified}', and a request from outside has no functional layer to call"
+                       if isinstance(n, a.Call) else
+                       f"reads '{format_expr(n)}', and a request from outside has no agent's variables to read")
+                raise UnsupportedError(
+                    f"a request's where value must be a constant expression (literals and operators); "
+                    f"'{format_expr(e)}' {why}: write its value", n.pos)
+        what = f"the request's where value '{format_expr(e)}'"
+        v = _fold(e, {}, self.checked, what, self.model.structs)
+        if isinstance(v, bool):
+            return a.BoolLit(v, pos=e.pos)
+        if isinstance(v, str):
+            return a.StringLit(v, pos=e.pos)
+        if isinstance(v, Fraction) and self.checked.type_of(e) == "int":
+            return a.IntLit(int(v), pos=e.pos)
+        if isinstance(v, Fraction) and Fraction(repr(float(v))) == v:
+            f = float(v)
+            return a.DoubleLit(f, pos=e.pos) if f >= 0 else a.Unary("-", a.DoubleLit(-f, pos=e.pos), pos=e.pos)
+        raise UnsupportedError(f"{what} is {v}, which has no exact decimal form (the model writes where values "
+                               f"as decimal numbers)", e.pos)
+
     def initial(self, ag: a.Agent, v: a.Var) -> str:
         ty = self.checked.var_types.get((ag.name, v.name))
         if v.init is None or ag.reading_task(v) is not None:
             return self.default(ty)
-        try:
+        if self.literal(v.init) is not None:   # (a literal: its text, as it always was)
             return self.const_value(v.init)
-        except UnsupportedError:
+        got = self.init_values.get((ag.name, v.name))
+        return self.default(ty) if got is None else got   # None: written when the agent starts
+
+    # ------------------------------------------------------------ initial values (4.2)
+    def initial_values(self) -> None:
+        """The initial value of every variable whose initialiser is neither a literal nor a
+        task: a constant expression (literals, operators, and the agent's own variables declared
+        before it whose initial values are constant) is evaluated here, with the spec's
+        expression semantics (:func:`_fold`); one that calls the functional layer, or reads a
+        variable initialised so, is evaluated when the agent starts (:meth:`start_code`), as
+        hyper runs the initialisers. Anything else is refused, located, with the reason."""
+        self.init_values: dict[tuple[str, str], Optional[str]] = {}
+        self.started: list[tuple[a.Agent, a.Var]] = []   # evaluated at start, in declaration order
+        for ag in self.spec.agents:
+            known: dict[str, object] = {}    # variable -> its constant initial value
+            late: set[str] = set()           # variables written at start
+            order = [v.name for v in ag.vars]
+            for v in ag.vars:
+                ty = self.checked.var_types.get((ag.name, v.name))
+                e = v.init
+                if e is None or ag.reading_task(v) is not None:
+                    if e is None:
+                        known[v.name] = self.default_py(ty)
+                    continue
+                what = f"the initial value of '{ag.name}::{v.name}'"
+                for ref in a.refs(e):
+                    owner = ref.agent if isinstance(ref, a.Remote) else ag.name
+                    if owner != ag.name:
+                        raise UnsupportedError(
+                            f"{what} reads '{owner}::{ref.name}', a variable of another agent (agents start "
+                            f"in no order the spec gives: an initial value may read only the agent's own "
+                            f"variables declared before it)", ref.pos)
+                    if ag.reading_task(ref.name) is not None:
+                        raise UnsupportedError(
+                            f"{what} reads '{ref.name}', whose value is made by running task "
+                            f"'{ag.reading_task(ref.name)}' on each read (a task runs only for a request, "
+                            f"not when the agent starts)", ref.pos)
+                    if order.index(ref.name) >= order.index(v.name):
+                        raise UnsupportedError(
+                            f"{what} reads '{ref.name}', declared {'at the same place' if ref.name == v.name else 'after it'}"
+                            f" (initial values are given in declaration order: a variable may read only the "
+                            f"variables declared before it)", ref.pos)
+                calls = any(True for _ in a.calls(e))
+                if calls or any(r.name in late for r in a.refs(e)):
+                    late.add(v.name)
+                    self.started.append((ag, v))
+                    self.init_values[(ag.name, v.name)] = None
+                    continue
+                value = _fold(e, known, self.checked, what, self.model.structs)
+                try:
+                    text = self.value(value, ty)
+                except RoarError:   # no decimal form (1.0 / 3.0): the engine computes it at start
+                    late.add(v.name)
+                    self.started.append((ag, v))
+                    self.init_values[(ag.name, v.name)] = None
+                    continue
+                known[v.name] = value
+                self.init_values[(ag.name, v.name)] = text
+
+    def logic_pre(self, ag: a.Agent, t: a.Task, q: a.Expr) -> str:
+        """A task pre-condition that calls the functional layer: in the tables it is a cell of its
+        own, ``lp_AGENT_K``, that only the logic layer's snapshot holds (no ``contains`` fact): its
+        value is the condition evaluated, calls and all, by the logic activation that runs before
+        each decision on a constraint sent to the agent (:meth:`logic_activation`). Nothing
+        entails it (post-conditions call no function), so a false one is never sub-goaled."""
+        if self.crashes:
             raise UnsupportedError(
-                f"the initial value of '{ag.name}::{v.name}' must be a literal (or name a task)", v.init.pos)
+                "a function call in a task pre-condition is not combined with crashes yet "
+                "(docs/semantics.md, Known gaps): check the crashes on a spec without it",
+                next(a.calls(q)).pos)
+        got = self.logic_pres.setdefault(ag.name, [])
+        cell = f"lp_{ag.name}_{len(got) + 1}"
+        got.append((cell, q, t))
+        self.out.append(f"{cell} : dest.")
+        p = f"(pc {cell})"
+        self.predicates[p] = ag.name
+        self.predicate_exprs.setdefault(p, (ag, q))
+        return p
+
+    def logic_activation(self, c: str, tag: a.Agent) -> list[str]:
+        """The code of the logic activation of constraint ``c`` (sent to ``tag``, whose task
+        pre-conditions call the functional layer): per such pre-condition, its calls (each one
+        step, answered by the functional layer: a branch per declared outcome in exploration, the
+        callable in a run), arguments first, then its evaluation, which pushes its value. Every
+        expression is evaluated on the snapshot the decision takes (``lsnap I S``: the agent's
+        variables with the where values in place). A failed call makes its pre-condition false
+        (as in a recipe's pre-condition check)."""
+        code: list[str] = []
+        spans = []   # per pre-condition: its call sites (with their pushes before them), its end
+        for cell, q, t in self.logic_pres[tag.name]:
+            cx = _Ctx(self, tag, [], snapshot=True, task=t.name)
+            calls: list[tuple[str, int]] = []
+            self.logic_calls(q, cx, calls)
+            cond = self.pexp(q, cx)
+            s = self.site("lpre", tag, t.name, "", q.pos, f"pre-condition of task {t.name}: {format_expr(q)}")
+            E = cx.envpat()
+            self.rules.append(
+                f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o lsnap I S -o !peval S {E} vnil {cond} X"
+                f"\n  -o {{ctl I m_run C (vcons X E) * rstat I go * lsnap I S}}.")
+            code += [x for x, _n in calls] + [s]
+            spans.append((calls, len(code)))
+        for calls, end in spans:
+            rest = self._code(code[end:])
+            for x, pushed in calls:
+                E = "E"
+                for i in range(pushed):
+                    E = f"(vcons H{i + 1} {E})"
+                self.rules.append(f"{x}_false : ctl I (m_call D {x}) _ {E} -o callfail D -o lsnap I S"
+                                  f"\n  -o {{ctl I m_run {rest} (vcons (vbool ff) E) * lsnap I S}}.")
+        return code
+
+    def logic_calls(self, e: a.Expr, cx: _Ctx, out: list) -> None:
+        """The calls of a task pre-condition, arguments first, as sites of the logic activation
+        (their arguments evaluated on its snapshot); each pushes its result."""
+        if isinstance(e, a.Call):
+            for x in e.args:
+                self.logic_calls(x, cx, out)
+            found = self.spec.resolve_function(cx.agent, e)
+            if found:
+                owner = found[0][0]
+                result_ty = self.checked.fn_sigs.get((owner, e.name), (None, None))[0]
+            else:
+                owner, result_ty = None, a.BUILTINS[e.name][0]
+            args = [self.pexp(x, cx) for x in e.args]
+            fc = self.fn_c(owner, e.name)
+            self.model.fn_types[fc] = result_ty
+            self.model.fn_params[fc] = list(self.checked.fn_sigs.get((owner, e.name), (None, []))[1] or [])
+            self.pending_fns[fc] = (owner, e.name, result_ty)
+            s = self.site("call", cx.agent, cx.task, "", e.pos, format_expr(e), function=e.qualified)
+            self.model.call_sites.setdefault(fc, []).append(e.pos)
+            E = cx.envpat()
+            vals = [f"A{i + 1}" for i in range(len(args))]
+            evals = "".join(f" -o !peval S {E} vnil {p} {v}" for p, v in zip(args, vals))
+            self.rules.append(
+                f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o lsnap I S{evals}\n"
+                f"  -o {{Exists d. pending {fc} {self._list(vals)} d * ctl I (m_call d {s}) C {E} * rstat I go"
+                f" * lsnap I S}}.")
+            out.append((s, cx.pushed))
+            cx.slots[id(e)] = len(cx.env)
+            cx.env.insert(0, "")
+            cx.pushed += 1
+            return
+        for ch in e.children():
+            if isinstance(ch, a.Expr):
+                self.logic_calls(ch, cx, out)
+
+    def start_code(self) -> Optional[str]:
+        """The initialisers that call the functional layer (or read a variable initialised so),
+        run when the agents start, before the request from outside is sent (hyper runs them
+        when the agent starts): an activation ``i_start`` of its own runs, in declaration order,
+        one ``set`` per such variable (its calls first, as in a recipe: each call is one step,
+        answered by the functional layer: the declared outcomes in exploration, so the start
+        state branches, the Python callable in a run). A call that fails leaves the variable at
+        its type's default. The request is sent (``start_done``) when all are done. Returns the
+        code's text, or None when no variable needs it."""
+        if not self.started:
+            return None
+        code: list[str] = []
+        ends: list[tuple[list[str], int]] = []   # per variable: its call sites, where its code ends
+        stub_t, stub_r = a.Task("", pos=None), a.Recipe("", pos=None)
+        for ag, v in self.started:
+            st = a.Set(a.Name(v.name, pos=v.pos), v.init, pos=v.init.pos)
+            sites = self.stmt(ag, stub_t, stub_r, st, [])
+            for x in sites:
+                self.start_sites.add(x)
+                self.model.sites[x].text = (f"initial value of {ag.name}::{v.name}: {format_expr(v.init)}"
+                                            if self.model.sites[x].kind == "set" else self.model.sites[x].text)
+            code += sites
+            ends.append(([x for x in sites if self.model.sites[x].kind == "call"], len(code)))
+        for calls, end in ends:
+            rest = self._code(code[end:])
+            for x in calls:   # a failed call: the variable keeps its default, the next one starts
+                self.rules.append(f"start_failed_{x[2:]} : ctl i_start (m_call D {x}) _ _ -o callfail D"
+                                  f"\n  -o {{ctl i_start m_run {rest} vnil}}.")
+        sent = "cgate z R" if self.crashes and not self.crashes.scheduled else "rs R s_sent"
+        self.rules.append(f"start_done : ctl i_start m_run cnil vnil -o rstat i_start go -o sgate R -o {{{sent}}}.")
+        self.out += ["i_start : inst.", "sgate : req -> type."]
+        return f"ctl i_start m_run {self._code(code)} vnil * rstat i_start go"
+
+    def default_py(self, ty: Optional[str]):
+        """A type's default as a Python value (:func:`_fold`'s values)."""
+        if ty in ("int", "double"):
+            return Fraction(0)
+        if ty == "bool":
+            return False
+        if ty in ("string", "identifier") or ty is None:
+            return ""
+        fields = self.model.structs.get(ty)
+        if fields is not None:
+            return tuple(self.default_py(self.field_types[ty][f]) for f in fields)
+        return _Opaque(0)
 
     def constraint_rules(self, c: str) -> None:
         tag, pred = self.cst_ast[c]
@@ -1356,14 +1647,17 @@ class _Compiler:
         # with crashes, the decision records the tree it commits as the handler's plan at once (an
         # abort that came before tasks_chosen would leave it in the mask: framework, `committed`)
         plan, pl = (" -o !committed D Pl1", "Pl1") if self.crashes else ("", "Pl")
-        self.rules.append(
-            f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D -o !commit D R M M1{plan}\n"
-            f"  -o {{hs R (h_dec D) EC F {pl} (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
-        self.rules.append(
-            f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
-            f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D -o !commit D R M M1{plan}\n"
-            f"  -o {{hs R (h_dec D) EC F {pl} vnone * {rq} * mask a_{tag.name} M1{back}}}.")
+        if tag.name in self.logic_pres:
+            self.logic_select(c, tag, rq, reads, back, snap(newv), snap(vars_), wl, pred_p)
+        else:
+            self.rules.append(
+                f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
+                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D -o !commit D R M M1{plan}\n"
+                f"  -o {{hs R (h_dec D) EC F {pl} (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
+            self.rules.append(
+                f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
+                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D -o !commit D R M M1{plan}\n"
+                f"  -o {{hs R (h_dec D) EC F {pl} vnone * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
             f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"
@@ -1385,6 +1679,36 @@ class _Compiler:
                 f"  -o {{{again} * rstat J Z1 * act J R0 T0 Rc0 N0 * rs R0 S1}}.")
             self.rules.append(
                 f"ensure_broken_top_{c} : {head} -o !detached J\n  -o {{{again}}}.")
+
+    def logic_select(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap_w: str, snap: str,
+                     wl: str, pred_p: str) -> None:
+        """The decision on ``c`` when the target's task pre-conditions call the functional layer
+        (4.3 through the functional layer): ``lselect_cN`` / ``lreselect_cN`` take the snapshot
+        (the where values in place, as ``select_cN`` does) and start the logic activation that
+        makes the calls and evaluates those pre-conditions on it (:meth:`logic_activation`);
+        when it is done, ``select_cN`` decides on the same snapshot, each such pre-condition's
+        value in its cell ``lp_AGENT_K``."""
+        code = self._code(self.logic_activation(c, tag))
+        start = f"lsnap i {{S}} * ctl i m_run {code} vnil * rstat i go"
+        self.rules.append(
+            f"lselect_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq}{reads}\n"
+            f"  -o {{Exists i. hs R (h_lq i) EC F Pl (vsome {wl}) * rs R s_pending * {rq}{back}"
+            f" * {start.replace('{S}', snap_w)}}}.")
+        self.rules.append(
+            f"lreselect_{c} : hs R h_select EC F Pl vnone -o {rq}{reads}\n"
+            f"  -o {{Exists i. hs R (h_lq i) EC F Pl vnone * {rq}{back} * {start.replace('{S}', snap)}}}.")
+        cells = [cell for cell, _q, _t in self.logic_pres[tag.name]]
+        got = "vnil"
+        full = "S"
+        for i, cell in enumerate(cells):
+            got = f"(vcons X{i + 1} {got})"
+            full = f"(vcons (vpair (vcell {cell}) X{i + 1}) {full})"
+        self.guards[f"lselect_{c}"] = self.guards[f"lreselect_{c}"] = (tag.name, "hs")
+        self.rules.append(
+            f"select_{c} : hs R (h_lq I) EC F Pl W -o lsnap I S -o ctl I m_run cnil {got} -o rstat I go"
+            f" -o {rq} -o mask a_{tag.name} M\n"
+            f"  -o !mtasks M MT -o !decide_k K {pred_p} {full} F MT D -o !commit D R M M1\n"
+            f"  -o {{hs R (h_dec D) EC F Pl W * {rq} * mask a_{tag.name} M1}}.")
 
     def timed_ensure_rules(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap: str, pred_p: str) -> None:
         """Timed mode: a held ensure of ``c`` is re-checked at its period (``held_arm`` arms it),
@@ -1510,7 +1834,8 @@ class _Compiler:
             # "if there is no direct solution, but a solution under certain hypotheses" (4.3)
             tries = []   # (p, agent, task, hypothesis) for the predicates no task entails directly
             for (p, agent, t), ok in zip(pairs, direct):
-                if not found[p] and p not in self.hyp_keys:   # (a where-keyed one keeps its own)
+                if not found[p] and p not in self.hyp_keys and not p.startswith("(pc lp_"):
+                    # (a where-keyed one keeps its own; a call is never abduced)
                     for h in self.hypotheses(self.predicate_exprs[p], t):
                         tries.append((p, agent, t, h))
             if tries:
@@ -1586,6 +1911,8 @@ class _Compiler:
     def goal_form(self, p: str) -> str:
         """What the logic layer proves for predicate key ``p``: its formula, under the where
         hypotheses of a ``pwhere`` key."""
+        if p.startswith("(pc lp_"):   # a pre-condition that calls a function: nothing entails it
+            return f"(fatom {p})"
         if p in self.hyp_keys:
             base, hyps = self.hyp_keys[p]
             form = self._form(*self.predicate_exprs[base])
@@ -1599,6 +1926,75 @@ class _Compiler:
         if isinstance(e, a.Binary) and e.op == "&&":
             return f"(fand {self._form(agent, e.left)} {self._form(agent, e.right)})"
         return f"(fatom {self.pexp(e, _Ctx(self, agent, [], snapshot=True))})"
+
+
+class _Opaque:
+    """An opaque value in a constant expression (only the default, handle 0, exists at compile time)."""
+
+    def __init__(self, handle: int):
+        self.handle = handle
+
+    def __eq__(self, other):
+        return isinstance(other, _Opaque) and other.handle == self.handle
+
+    def __hash__(self):
+        return hash(self.handle)
+
+
+def _engine(name: str, *args):
+    """A number operation as the engine's built-in ``name`` computes it (what ``peval``'s
+    ``apply_op`` clauses call at run time)."""
+    from ..clf.builtins import BUILTINS
+    from ..clf.terms import Const
+    return BUILTINS[Const(name)].fn(*args)
+
+
+def _fold(e: a.Expr, known: dict, checked: CheckedSpec, what: str, structs: dict):
+    """The value of a constant expression, as the framework's ``peval`` computes it (its operators
+    are the engine's built-ins): numbers exact rationals, ``/`` on two ints truncating toward zero,
+    both operands of ``&&`` and ``||`` evaluated, ``==`` structural. ``known`` maps the agent's
+    earlier variables to their values. A division by zero is a located error."""
+    if isinstance(e, a.BoolLit):
+        return e.value
+    if isinstance(e, a.IntLit):
+        return Fraction(e.value)
+    if isinstance(e, a.DoubleLit):
+        return Fraction(repr(e.value))
+    if isinstance(e, a.StringLit):
+        return e.value
+    if isinstance(e, (a.Name, a.Remote)):
+        return known[e.name]
+    if isinstance(e, a.Field):
+        base = _fold(e.base, known, checked, what, structs)
+        return base[structs[checked.type_of(e.base)].index(e.name)]
+    if isinstance(e, a.Unary):
+        x = _fold(e.operand, known, checked, what, structs)
+        return (not x) if e.op == "!" else _engine("num_neg", x)
+    if isinstance(e, a.Binary):
+        x = _fold(e.left, known, checked, what, structs)
+        y = _fold(e.right, known, checked, what, structs)
+        op = e.op
+        if op == "==":
+            return x == y
+        if op == "!=":
+            return x != y
+        if op in ("<", "<=", ">", ">="):
+            return {"<": x < y, "<=": x <= y, ">": x > y, ">=": x >= y}[op]
+        if op == "&&":
+            return x and y
+        if op == "||":
+            return x or y
+        if op == "+":
+            return x + y if isinstance(x, str) else _engine("num_add", x, y)
+        if op == "-":
+            return _engine("num_sub", x, y)
+        if op == "*":
+            return _engine("num_mul", x, y)
+        if op == "/":
+            if y == 0:
+                raise RoarError(f"{what} divides by zero: '{format_expr(e.right)}' is 0", e.right.pos)
+            return _engine("num_idiv" if checked.type_of(e.left) == "int" else "num_div", x, y)
+    raise UnsupportedError(f"{what}: '{format_expr(e)}' is not a constant expression", e.pos)
 
 
 def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[Registry] = None,

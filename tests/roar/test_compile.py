@@ -242,9 +242,17 @@ def _expectation(path: Path):
 
 
 def test_unsupported_suite_is_large_enough():
+    # Issue 14 item 5 (hyper parity) made seven of the eleven former files supported (non-literal
+    # initial values, calls in task pre-conditions, constant request where values, one constraint
+    # with several where clauses: tests/roar/parity/, test_hyper_parity.py) and added the refusals
+    # those constructs still have (an initial value reading another agent's, a later or a
+    # task-initialised variable; a request where value reading a variable), and a local in a
+    # constraint (it used to end in an unlocated error of the compiled model): 9 files, 9 constructs.
+    # A construct is its message with the quoted names left out, so that one construct with two
+    # names counts once.
     assert len(UNSUPPORTED) >= 8
-    fragments = {_expectation(p)[3].split("(")[0] for p in UNSUPPORTED}
-    assert len(fragments) >= 4   # several different constructs, not one eight times
+    fragments = {re.sub(r"(?<=[\s(])'[^']*'(?=[\s),:]|$)", "''", _expectation(p)[3]) for p in UNSUPPORTED}
+    assert len(fragments) >= 8   # several different constructs, not one eight times
 
 
 @pytest.mark.parametrize("path", UNSUPPORTED, ids=[p.stem for p in UNSUPPORTED])
