@@ -31,6 +31,7 @@ from roar_formal.verify.jobs import load_job
 
 from repo import ROOT
 from .test_run import replay_on_enumerator
+from .printed import args_of
 
 DATA = Path(__file__).resolve().parent / "data"
 SPEC = DATA / "crash_callee.roar"
@@ -100,21 +101,8 @@ class Oracle:
         self.facts = [[p.show(f) for _m, f, _n in ctx.facts()] for ctx in self.states]
 
     # -- decoding: printed facts, split into family and arguments
-    @staticmethod
-    def args(fact: str) -> list[str]:
-        out, depth, cur = [], 0, ""
-        for ch in fact.split(" ", 1)[1] if " " in fact else "":
-            if ch == " " and depth == 0:
-                out.append(cur)
-                cur = ""
-                continue
-            depth += ch == "("
-            depth -= ch == ")"
-            cur += ch
-        return out + ([cur] if cur else [])
-
     def family(self, s: int, fam: str) -> list[list[str]]:
-        return [self.args(f) for f in self.facts[s] if f.split(" ", 1)[0] == fam]
+        return [args_of(f) for f in self.facts[s] if f.split(" ", 1)[0] == fam]
 
     def epoch(self, s: int, agent: str) -> int:
         (e,) = [int(a[1][len("t_ep"):]) for a in self.family(s, "cep") if a[0] == f"a_{agent}"]
@@ -131,7 +119,7 @@ class Oracle:
         """Does a step consuming these printed facts touch the agent's requests or activations?"""
         reqs, insts = self.requests_of(s, agent), self.activations_of(s, agent)
         for f in consumed:
-            a = self.args(f)
+            a = args_of(f)
             if a and (a[0] in reqs or a[0] in insts or a[0] == f"a_{agent}"):
                 return True
         return False

@@ -37,25 +37,12 @@ from roar_formal.roar.spec import load_spec
 from roar_formal.testing.api import load_spec as api_load
 
 from .test_run import replay_on_enumerator
+from .printed import args_of
 
 PARITY = Path(__file__).resolve().parent / "parity"
 
 
 # ------------------------------------------------------------------ the independent enumeration
-
-
-def args_of(fact: str) -> list[str]:
-    """The arguments of a printed fact (parenthesised ones kept whole)."""
-    out, depth, cur = [], 0, ""
-    for ch in fact.split(" ", 1)[1] if " " in fact else "":
-        if ch == " " and depth == 0:
-            out.append(cur)
-            cur = ""
-            continue
-        depth += ch == "("
-        depth -= ch == ")"
-        cur += ch
-    return out + ([cur] if cur else [])
 
 
 class Paths:

@@ -32,6 +32,8 @@ from roar_formal.verify.check import run_job, save_counterexample
 from roar_formal.verify.jobs import load_job
 from roar_formal.verify.replay import replay_trace
 
+from .printed import args_of
+
 from repo import ROOT
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -92,19 +94,6 @@ def test_the_clock_of_a_spec():
 # ------------------------------------------------------------------ the independent search
 
 
-def _args(fact: str) -> list[str]:
-    out, depth, cur = [], 0, ""
-    for ch in fact.split(" ", 1)[1] if " " in fact else "":
-        if ch == " " and depth == 0:
-            out.append(cur)
-            cur = ""
-            continue
-        depth += ch == "("
-        depth -= ch == ")"
-        cur += ch
-    return out + ([cur] if cur else [])
-
-
 def _nums(lst: str) -> list[int]:
     return [int(x) for x in re.findall(r"\(vnum (\d+)\)", lst)]
 
@@ -140,7 +129,7 @@ class Oracle:
         self.facts = [[p.show(f) for _m, f, _n in ctx.facts()] for ctx in self.states]
 
     def family(self, s: int, fam: str) -> list[list[str]]:
-        return [_args(f) for f in self.facts[s] if f.split(" ", 1)[0] == fam]
+        return [args_of(f) for f in self.facts[s] if f.split(" ", 1)[0] == fam]
 
     def clock(self, s: int) -> tuple[int, list[int]]:
         (c,), (t,) = self.family(s, "clock"), self.family(s, "tmrs")
