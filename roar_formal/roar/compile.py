@@ -1644,9 +1644,9 @@ class _Compiler:
         newv = dict(vars_)
         newv.update(wvars)
         wl = self._list([f"(vpair (vcell {w}) {wvars[w]})" for w in where])
-        # with crashes, the decision records the tree it commits as the handler's plan at once (an
-        # abort that came before tasks_chosen would leave it in the mask: framework, `committed`)
-        plan, pl = (" -o !committed D Pl1", "Pl1") if self.crashes else ("", "Pl")
+        # the decision records the tree it commits as the handler's plan at once (an abort that came
+        # before tasks_chosen would leave it in the mask: framework, `committed`)
+        plan, pl = " -o !committed D Pl1", "Pl1"
         if tag.name in self.logic_pres:
             self.logic_select(c, tag, rq, reads, back, snap(newv), snap(vars_), wl, pred_p)
         else:
@@ -1707,8 +1707,8 @@ class _Compiler:
         self.rules.append(
             f"select_{c} : hs R (h_lq I) EC F Pl W -o lsnap I S -o ctl I m_run cnil {got} -o rstat I go"
             f" -o {rq} -o mask a_{tag.name} M\n"
-            f"  -o !mtasks M MT -o !decide_k K {pred_p} {full} F MT D -o !commit D R M M1\n"
-            f"  -o {{hs R (h_dec D) EC F Pl W * {rq} * mask a_{tag.name} M1}}.")
+            f"  -o !mtasks M MT -o !decide_k K {pred_p} {full} F MT D -o !commit D R M M1 -o !committed D Pl1\n"
+            f"  -o {{hs R (h_dec D) EC F Pl1 W * {rq} * mask a_{tag.name} M1}}.")
 
     def timed_ensure_rules(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap: str, pred_p: str) -> None:
         """Timed mode: a held ensure of ``c`` is re-checked at its period (``held_arm`` arms it),

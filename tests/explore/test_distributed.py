@@ -57,7 +57,7 @@ def _single(path):
 
 
 # the .clf philosophers (deadlock; livelock), and ROAR jobs: a deadlock, a lasso of a temporal
-# default property, a broken sequential achievement among 1,730 states (conflict's 2,658 states
+# default property, a broken sequential achievement among 1,693 states (conflict's 2,658 states
 # agree too, in about 20 s: bench/b9_distributed.py runs it)
 JOBS = ["philosophers_dl5.toml", "philosophers_ll5.toml", "mutual_make.toml", "camera_retry.toml",
         "ordered_pick.toml"]
