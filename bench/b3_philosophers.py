@@ -53,7 +53,8 @@ FIGURES = {("dl", 5): (572, 1970), ("dl", 8): (25888, 142768), ("ok", 5): (417, 
 FULL = [("dl", 5), ("dl", 8), ("ok", 5), ("ok", 8), ("ok", 10), ("ok", 12), ("ll", 5), ("ll", 8)]
 QUICK = [("dl", 5), ("ok", 8), ("ll", 8)]
 
-EXPLORE = textwrap.dedent("""
+#: what both child scripts start with: the model generator and the ground backend
+PRELUDE = textwrap.dedent("""
     import json, sys, time, importlib.util
     sys.path.insert(0, {root!r})
     spec = importlib.util.spec_from_file_location("gen", {root!r} + "/models/philosophers/generate.py")
@@ -61,6 +62,9 @@ EXPLORE = textwrap.dedent("""
     from roar_formal.clf.program import Program
     from roar_formal.explore.system import Options
     from roar_formal.explore.ground import GroundExplorer, GroundModel
+""")
+
+EXPLORE = PRELUDE + textwrap.dedent("""
     from roar_formal.explore.properties import check_deadlock, check_livelock
     from roar_formal.explore.search import rss_mb
     t0 = time.perf_counter()
@@ -199,14 +203,7 @@ LAUNCH = textwrap.dedent("""
                           user_s=ru.ru_utime, sys_s=ru.ru_stime, peak_mb=ru.ru_maxrss / 1024.0)))
 """)
 
-OURS = textwrap.dedent("""
-    import json, sys, time, importlib.util
-    sys.path.insert(0, {root!r})
-    spec = importlib.util.spec_from_file_location("gen", {root!r} + "/models/philosophers/generate.py")
-    gen = importlib.util.module_from_spec(spec); spec.loader.exec_module(gen)
-    from roar_formal.clf.program import Program
-    from roar_formal.explore.system import Options
-    from roar_formal.explore.ground import GroundExplorer, GroundModel
+OURS = PRELUDE + textwrap.dedent("""
     from roar_formal.explore.properties import check_deadlock
     t0 = time.perf_counter()
     p = Program.from_text(gen.program({variant!r}, {n}))

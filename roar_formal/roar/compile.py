@@ -240,6 +240,17 @@ class Timing:
         return {"time": self.mode, **({"wait_timeout": self.wait_timeout} if self.wait_timeout is not None else {})}
 
 
+def nothing_timed(model) -> Optional[str]:
+    """Why asking for the timed mode changes nothing on this compiled model (its spec writes no
+    period), or None. The library compiles such a model (it is the untimed one); the job, the
+    command line and the API refuse it, so that no one believes a timed check was made."""
+    if getattr(model, "timing", None) and model.tick_ms is None:
+        return ("the timed mode models the periods of wait, assert and ensure, and this spec writes none "
+                "(e.g. wait(c, 100)): nothing would be timed and the model is the untimed one; drop the time "
+                "option, or give the statements periods")
+    return None
+
+
 def timing_of(value) -> Optional[Timing]:
     """A Timing from None, a mode name or a Timing; None when untimed."""
     if value is None:

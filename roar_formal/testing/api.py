@@ -240,8 +240,12 @@ class AgentSpec:
         model = self._compiled.get(key)
         if model is None:
             reg = self.registry()
-            model = self._compiled[key] = compile_spec(self.ast, request, registry=reg, functional=mode,
-                                                       crashes=crashes, time=timing)
+            model = compile_spec(self.ast, request, registry=reg, functional=mode, crashes=crashes, time=timing)
+            from ..roar.compile import nothing_timed
+            why = nothing_timed(model)
+            if why:
+                raise RoarError(f"{self.name}: {why}")
+            self._compiled[key] = model
             self._spare = reg   # unused by any run yet: the next run takes it (the module runs once)
         return model
 

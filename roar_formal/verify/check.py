@@ -169,6 +169,12 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract",
                          crashes=getattr(job, "crashes", None),   # [faults] crash (docs/semantics.md, Crashes)
                          time=getattr(job, "time", None))         # time / [time] (docs/semantics.md, Time)
+    from ..roar.compile import nothing_timed
+    why = nothing_timed(model)
+    if why:
+        if job.time.where:   # a job file's time / [time]
+            raise RoarError(why, job.time.where[0])
+        raise RoarError(f"{job.spec}: --time timed: {why}")
     program, start, options, pairs = roar_setup(job, model)
     props = job.props
     never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \

@@ -589,3 +589,16 @@ def test_the_api_runs_and_explores_timed():
     assert spec.explore(OPEN, properties=["deadlock"]).verdicts["deadlock"].status == "violated"
     with pytest.raises(RoarError, match="cannot be combined"):
         spec.explore(OPEN, crash=["door"], time="timed")
+
+
+def test_the_timed_mode_on_a_spec_without_periods_is_refused(tmp_path, roar_cli):
+    """Nothing would be timed: the model would be the untimed one, and a 'timed' check would be
+    one in name only. The library compiles it (above); the job, the command line and the API refuse."""
+    spec = ROOT / "models" / "faulty" / "retry_forever.roar"
+    job = write_job(tmp_path, spec, "hand::holding == true", 'time = "timed"\n')
+    code, out, err = roar_cli("check", job)
+    assert code == 2 and "job.toml:3:8: the timed mode models the periods" in out + err
+    code, out, err = roar_cli("check", spec, "-r", "hand::holding == true", "--time", "timed")
+    assert code == 2 and "--time timed: the timed mode models the periods" in out + err
+    code, out, err = roar_cli("run", spec, "-r", "hand::holding == true", "--time", "timed")
+    assert code == 2 and "this spec writes none" in out + err and "Traceback" not in out + err
