@@ -402,11 +402,15 @@ class _Ctx:
     def var(self, cell: str) -> str:
         if self.snapshot:
             return f"(pc {cell})"
+        return f"(pl {self.meta(cell)})"
+
+    def meta(self, cell: str) -> str:
+        """The metavariable the statement's rule reads ``cell`` into."""
         v = self.reads.get(cell)
         if v is None:
             v = f"V{len(self.reads) + 1}"
             self.reads[cell] = v
-        return f"(pl {v})"
+        return v
 
     def sub(self) -> "_Ctx":
         """A context for a hoisted site: same locals, its own reads."""
@@ -443,6 +447,8 @@ class _Compiler:
         self.variant_of: dict[str, str] = {}
         self.variants: dict[tuple[str, tuple[str, ...]], str] = {}
         self.sent_variants: dict[tuple[str, str, str], set[str]] = {}   # (agent, task, recipe) -> variants
+        self.sent_runs: dict[tuple[str, str, str], set[str]] = {}   # (agent, task, recipe) -> task-run csts
+        self.asks: list[tuple[a.Agent, str, str, list[a.Recipe]]] = []   # (agent, recipe, cst it emits, others)
         # agent -> its task pre-conditions that call the functional layer: (pseudo-cell, condition, task);
         # the logic layer evaluates them before each decision (docs/semantics.md, "The logic layer")
         self.logic_pres: dict[str, list[tuple[str, a.Expr, a.Task]]] = {}
@@ -569,6 +575,7 @@ class _Compiler:
             f"      * rq r a_{owner.name} {run_c} I (k_task {tc}) * rs r s_pending * ppz r ff\n"
             f"      * hs r (h_tasks (vcons (vtsk {tc}) vnil)) vnil {failed} vnil vnone{stamp_o}}}.")
         cx.hoisted.append(s)
+        self.sent_runs.setdefault((cx.agent.name, cx.task, cx.recipe), set()).add(run_c)
 
     def hoist_call(self, e: a.Call, cx: _Ctx) -> None:
         found = self.spec.resolve_function(cx.agent, e)
@@ -1100,29 +1107,70 @@ class _Compiler:
         dom = sorted({self.cst_for(ag, c.expr, c.target(ag.name)) for _, c in r.constraints()})
         o.append(f"cdom_{rc} : cdom {rc} {self._list([f'(vcst {c})' for c in dom])}.")
         o.append(f"rinfo_{rc} : rinfo {rc} {r.preference()} {len(r.pre)} {len(r.constraint_domain(ag.name))}.")
-        # alternatives for the calling-context search (5.3): another recipe of the
-        # task whose constraint domain avoids the constraint, and that is acceptable now
+        # the calling-context search (5.3) at an activation of this recipe, for each constraint it
+        # may emit: its rules are compiled once every constraint is known (calling_context_rules)
         for c in dom:
             others = [q for q in t.recipes if q is not r and
                       c not in {self.cst_for(ag, x.expr, x.target(ag.name)) for _, x in q.constraints()}]
-            o.append(f"alt_{rc}_{c} : alt {rc} {c} {'tt' if others else 'ff'}.")
-            if others:
-                self.alternative_rules(ag, rc, c, others)
+            self.asks.append((ag, rc, c, others))
             for v in sorted(x for x in self.sent_variants.get((ag.name, t.name, r.name), ())
                             if self.variant_of[x] == c):   # (the same constraint, another where clause)
-                o.append(f"alt_{rc}_{v} : alt {rc} {v} {'tt' if others else 'ff'}.")
-                if others:
-                    self.alternative_rules(ag, rc, v, others)
+                self.asks.append((ag, rc, v, others))
+        for run_c in sorted(self.sent_runs.get((ag.name, t.name, r.name), ())):
+            self.asks.append((ag, rc, run_c, []))   # (a task run: no recipe avoids reading the variable)
 
-    def alternative_rules(self, ag: a.Agent, rc: str, c: str, others: list[a.Recipe]) -> None:
-        """The calling-context search at an activation of ``rc`` holding a request of ``c``: it
-        reconfigures only if one of ``others`` is acceptable in the current situation (4.4: its
-        pre-conditions hold), otherwise the search moves to its caller.
+    def calling_context_rules(self) -> None:
+        """The calling-context search (5.3) at an activation ``Ik`` of a recipe ``rc`` that emitted
+        the request ``Rk`` of ``c``, asked for the new request ``R`` (``cres R Rk``), serving
+        request ``Rk1``: first another recipe of its task that avoids ``c`` and is acceptable in
+        the current situation (:meth:`alternative_rules`), then another task set for ``Rk1``
+        without its task, executable now (``ask_tasks_RC_C``), else ``Rk1``'s emitter is asked
+        (``ask_caller_RC_C``).
+
+        The task set is decided as a reselection would be (the framework's ``retask``: the
+        predicate, a snapshot of every cell the agent's decisions read, its failed tasks and the
+        task avoided, the mask without ``Rk1``'s own entries). An agent whose task pre-conditions
+        call the functional layer decides through a logic activation, which cannot run inside
+        this one step: there the task-set search is skipped (docs/semantics.md, Known gaps)."""
+        snap_cells: dict[str, list[str]] = {}
+        for c1 in self.cst_pexp:
+            cells = snap_cells.setdefault(self.cst_ast[c1][0].name, [])
+            cells += [x for x in self.snapshot_cells(c1) if x not in cells]
+        for ag, rc, c, others in self.asks:
+            cx = _Ctx(self, ag, [], run_tasks=False)
+            cond = self.alternative_condition(others, cx) if others else None
+            head = f"cres R Rk -o rq Rk Ak {c} Ik Kk -o act Ik Rk1 Tk {rc} N -o alive Ik"
+            keep = f"rq Rk Ak {c} Ik Kk * act Ik Rk1 Tk {rc} N * alive Ik"
+            if ag.name in self.logic_pres:
+                prem, outs = self.premises(cx)
+                if cond is not None:
+                    self.alternative_rules(ag, rc, c, head + prem, keep + outs, cond)
+                no_alt = f"\n  -o !peval vnil vnil vnil {cond} (vbool ff)" if cond is not None else ""
+                self.guards[f"ask_caller_{rc}_{c}"] = (ag.name, "ask")
+                self.rules.append(f"ask_caller_{rc}_{c} : {head}{prem}{no_alt}\n  -o {{{keep}{outs} * cres R Rk1}}.")
+                continue
+            snap = self._list([f"(vpair (vcell {cell}) {cx.meta(cell)})"
+                               for cell in snap_cells.get(ag.name, [])])
+            prem, outs = self.premises(cx)
+            if cond is not None:
+                self.alternative_rules(ag, rc, c, head + prem, keep + outs, cond)
+            no_alt = f"\n  -o !peval vnil vnil vnil {cond} (vbool ff)" if cond is not None else ""
+            req = f"hs Rk1 (h_run Tk P Ik) EC F Pl W -o rq Rk1 a_{ag.name} C1 J1 K1 -o mask a_{ag.name} M"
+            back = f"hs Rk1 (h_run Tk P Ik) EC F Pl W * rq Rk1 a_{ag.name} C1 J1 K1 * mask a_{ag.name} M"
+            decide = f"!mrm M Pl M0 -o !mtasks M0 MT -o !retask K1 C1 Tk {snap} F MT"
+            self.guards[f"ask_tasks_{rc}_{c}"] = self.guards[f"ask_caller_{rc}_{c}"] = (ag.name, "hs")
+            self.rules.append(f"ask_tasks_{rc}_{c} : {head}{prem}{no_alt}\n  -o {req}\n  -o {decide} tt\n"
+                              f"  -o {{{keep}{outs} * {back} * kill Ik (k_retask Tk)}}.")
+            self.rules.append(f"ask_caller_{rc}_{c} : {head}{prem}{no_alt}\n  -o {req}\n  -o {decide} ff\n"
+                              f"  -o {{{keep}{outs} * {back} * cres R Rk1}}.")
+
+    def alternative_condition(self, others: list[a.Recipe], cx: "_Ctx") -> str:
+        """Whether one of ``others`` is acceptable in the current situation (4.4: its
+        pre-conditions hold), over the cells ``cx`` reads.
 
         A pre-condition conjunct that calls the functional layer or reads the error context
         (``last_error?``) cannot be decided inside this one step; it is taken as true (the
         recipe selection that follows the switch still checks it)."""
-        cx = _Ctx(self, ag, [], run_tasks=False)
         options = []
         for q in others:
             conj = [x for e in q.pre for x in a.conjuncts(e)
@@ -1136,14 +1184,14 @@ class _Compiler:
         cond = options[0]
         for f in options[1:]:
             cond = f"(pbin o_or {cond} {f})"
-        prem, outs = self.premises(cx)
-        head = f"cres R Rk -o rq Rk Ak {c} Ik Kk -o act Ik Rk1 Tk {rc} N -o alive Ik{prem}"
-        keep = f"rq Rk Ak {c} Ik Kk * act Ik Rk1 Tk {rc} N * alive Ik{outs}"
-        self.guards[f"ask_alternative_{rc}_{c}"] = self.guards[f"ask_caller_{rc}_{c}"] = (ag.name, "ask")
+        return cond
+
+    def alternative_rules(self, ag: a.Agent, rc: str, c: str, head: str, keep: str, cond: str) -> None:
+        """The calling-context search at an activation of ``rc`` holding a request of ``c``: it
+        reconfigures onto another recipe when one that avoids ``c`` is acceptable now (``cond``)."""
+        self.guards[f"ask_alternative_{rc}_{c}"] = (ag.name, "ask")
         self.rules.append(f"ask_alternative_{rc}_{c} : {head}\n  -o !peval vnil vnil vnil {cond} (vbool tt)\n"
                           f"  -o {{{keep} * kill Ik (k_switch {c})}}.")
-        self.rules.append(f"ask_caller_{rc}_{c} : {head}\n  -o !peval vnil vnil vnil {cond} (vbool ff)\n"
-                          f"  -o {{{keep} * cres R Rk1}}.")
 
     def _code(self, sites: list[str]) -> str:
         out = "cnil"
@@ -1237,6 +1285,7 @@ class _Compiler:
         self.key_hypotheses()
         for c in sorted(self.cst_pexp):
             self.constraint_rules(c)
+        self.calling_context_rules()
         decls = []   # (after the constraints' rules: a logic activation calls functions)
         cst_ids = {c: i for i, c in enumerate((c for c in sorted(m.csts) if c not in self.variant_of), start=1)}
         for c in sorted(m.csts):
@@ -1248,6 +1297,8 @@ class _Compiler:
             o.extend(self.crash_declarations(sum(len(ag.tasks) for ag in spec.agents)))
         if self.clock:
             o.extend(self.time_declarations())
+        # the predicate of each constraint, for the calling-context search (framework: retask)
+        o.extend(f"cpred_{c} : cpred {c} {p}." for c, p in sorted(self.cst_pexp.items()))
         self.guard_crashed()
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
         o.extend("st" + r[2:] if r.startswith("pp") else r for r in self.rules)
@@ -1618,9 +1669,10 @@ class _Compiler:
             return tuple(self.default_py(self.field_types[ty][f]) for f in fields)
         return _Opaque(0)
 
-    def constraint_rules(self, c: str) -> None:
+    def snapshot_cells(self, c: str) -> list[str]:
+        """The cells a decision on ``c`` reads: the predicate's, and those its target's task pre-
+        and post-conditions read."""
         tag, pred = self.cst_ast[c]
-        # the snapshot: variables of the agent its tasks' pre-conditions read, and the predicate's
         cells: list[str] = []
 
         def add(e):
@@ -1635,6 +1687,12 @@ class _Compiler:
                 add(self._qualify(e, tag.name))
             for e in t.post:   # hypotheses (candidates) are made of post-condition and predicate sides
                 add(self._qualify(e, tag.name))
+        return cells
+
+    def constraint_rules(self, c: str) -> None:
+        tag, pred = self.cst_ast[c]
+        # the snapshot: variables of the agent its tasks' pre-conditions read, and the predicate's
+        cells = self.snapshot_cells(c)
         where = self.where_cells.get(c, [])
         for w in where:
             if w not in cells:

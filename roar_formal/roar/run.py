@@ -475,13 +475,14 @@ class Narrator:
                 yield RoarEvent(st.i, "conflict", agent, f"{lab} ({text}) conflicts with {held}, which holds "
                                 f"the task it needs: asking the calling context of {held}",
                                 {"request": lab, "holder": held})
-        if rule.startswith(("ask_alternative_", "ask_caller_")):   # compiled per recipe and constraint
+        if rule.startswith(("ask_alternative_", "ask_tasks_", "ask_caller_")):   # compiled per recipe and constraint
             rule = rule[:rule.index("_", 4)]
-        if rule in ("ask_alternative", "ask_caller", "no_alternative", "holder_aborted"):
+        if rule in ("ask_alternative", "ask_tasks", "ask_caller", "no_alternative", "holder_aborted"):
             for c in map(V.cres, st.used(V.CRES)):
                 lab, at = self.label(c.request), self.label(c.at)
                 agent = self.req_info.get(at, ("?",))[0]
                 verdict = {"ask_alternative": "has an alternative: it reconfigures",
+                           "ask_tasks": "has no other recipe, but its request has another task set: it reconfigures",
                            "ask_caller": "has no alternative: asking its caller",
                            "no_alternative": "is a request from outside: the conflict cannot be resolved",
                            "holder_aborted": "was aborted: waiting for its tasks to be released"}[rule]
@@ -625,6 +626,9 @@ def _reason(t, m) -> str:
         return f"constraint failed: {m.csts.get(V.k_cst(t).cst.head.name, ('?', '?'))[1]}"
     if h == "k_switch":
         return f"switched away from {m.csts.get(V.unwrap(t).head.name, ('?', '?'))[1]}"
+    if h == "k_retask":
+        task = m.tasks.get(V.unwrap(t).head.name)
+        return f"switched to a task set without {task[1] if task else '?'}"
     if h == "k_crash":
         return "stopped: its agent crashed"
     return show(t)

@@ -300,7 +300,7 @@ WRAPPERS: dict = {
     "vnum": "number", "vbool": "bool", "vstr": "string", "vrec": "val", "vopq": "number", "vsome": "val",
     "vtsk": "task", "vcst": "cst", "vviol": "cst", "vbroke": "cst", "vconf": "task", "vsite": "site", "vunavail": "agent",
     "m_make": "req", "m_block": "val", "h_write": "val",
-    "k_local": "site", "k_switch": "cst", "k_task": "task",
+    "k_local": "site", "k_switch": "cst", "k_retask": "task", "k_task": "task",
 }
 
 _RECORDS = {**FACTS, **EXPLORER_FAMILIES, **TERMS}
