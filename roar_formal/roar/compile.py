@@ -251,6 +251,21 @@ def nothing_timed(model) -> Optional[str]:
     return None
 
 
+def timeout_unused(model) -> Optional[str]:
+    """Why the ``wait_timeout`` of a timed compiled model changes nothing (its spec has no ``wait``
+    with a period: the timeout applies to those alone), or None. As with :func:`nothing_timed`, the
+    library compiles such a model; the job (at its ``wait_timeout``), the command line and the API
+    refuse it, so that no one believes a timeout was checked."""
+    timing = getattr(model, "timing", None)
+    if not timing or timing.wait_timeout is None:
+        return None
+    if any(isinstance(n, a.Wait) and n.period is not None for n in a.walk(model.spec)):
+        return None
+    return (f"wait_timeout applies to the waits with a period (e.g. wait(c, 100)), and this spec has none "
+            f"(a wait without a period, an assert and an ensure never time out): the timeout of "
+            f"{timing.wait_timeout} ms would change nothing; drop it, or give the waits periods")
+
+
 def timing_of(value) -> Optional[Timing]:
     """A Timing from None, a mode name or a Timing; None when untimed."""
     if value is None:

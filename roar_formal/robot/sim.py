@@ -299,7 +299,9 @@ class _Sim:
         if forced is not None:
             term, how, writes = forced
             rec.forced = how
-            rec.result = CallResult(None if term is None else True, term is None, how, {})
+            # the value the agents receive (a bool function's failing outcome: false, not true)
+            value = None if term is None else self.values.python(term, self.model.fn_types.get(fc))
+            rec.result = CallResult(value, term is None, how, {})
             self._answer(f, rec, term, writes)
             return True
         if fc in self.now_fc:

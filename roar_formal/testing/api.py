@@ -241,8 +241,8 @@ class AgentSpec:
         if model is None:
             reg = self.registry()
             model = compile_spec(self.ast, request, registry=reg, functional=mode, crashes=crashes, time=timing)
-            from ..roar.compile import nothing_timed
-            why = nothing_timed(model)
+            from ..roar.compile import nothing_timed, timeout_unused
+            why = nothing_timed(model) or timeout_unused(model)
             if why:
                 raise RoarError(f"{self.name}: {why}")
             self._compiled[key] = model
@@ -467,8 +467,17 @@ def _timing(time: Any, wait_timeout: Optional[int]):
     from ..roar.compile import Timing, timing_of
     if time is None and wait_timeout is None:
         return None
-    if wait_timeout is not None and not isinstance(time, Timing):
-        time = Timing(time if time is not None else "timed", wait_timeout)
+    if wait_timeout is not None:
+        if time is None:   # untimed (the default): a timeout alone does not choose the timed mode
+            raise RoarError("wait_timeout needs the timed mode (time = \"timed\", --time timed): "
+                            "an untimed wait never times out")
+        if isinstance(time, Timing):
+            if time.wait_timeout is not None and time.wait_timeout != wait_timeout:
+                raise RoarError(f"wait_timeout given twice: {time.wait_timeout} ms in the Timing and "
+                                f"{wait_timeout!r} ms; give it once")
+            time = Timing(time.mode, wait_timeout, time.where)
+        else:
+            time = Timing(time, wait_timeout)
     return timing_of(time)
 
 
@@ -569,6 +578,9 @@ def load_jobs(paths: Sequence[PathLike], *, request: Optional[str] = None,
     models = [p for p in ps if is_model_path(p)]
     files = find_jobs([p for p in ps if not is_model_path(p)]) if len(models) < len(ps) else []
     direct = [job_for_model(p, request, list(properties)) for p in models]
+    if wait_timeout is not None and not direct:
+        raise RoarError("--wait-timeout is for a spec named on the command line; a job file says its own "
+                        "([time] wait_timeout)")
     timing = _timing(time, wait_timeout)
     if timing:
         if not direct:

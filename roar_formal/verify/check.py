@@ -169,12 +169,17 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract",
                          crashes=getattr(job, "crashes", None),   # [faults] crash (docs/semantics.md, Crashes)
                          time=getattr(job, "time", None))         # time / [time] (docs/semantics.md, Time)
-    from ..roar.compile import nothing_timed
+    from ..roar.compile import nothing_timed, timeout_unused
     why = nothing_timed(model)
     if why:
         if job.time.where:   # a job file's time / [time]
             raise RoarError(why, job.time.where[0])
         raise RoarError(f"{job.spec}: --time timed: {why}")
+    why = timeout_unused(model)
+    if why:
+        if len(job.time.where) > 1 and job.time.where[1] is not None:   # a job file's [time] wait_timeout
+            raise RoarError(why, job.time.where[1])
+        raise RoarError(f"{job.spec}: {why}")   # --wait-timeout of `check SPEC`, the API's explore
     program, start, options, pairs = roar_setup(job, model)
     props = job.props
     never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \

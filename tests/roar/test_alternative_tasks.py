@@ -107,3 +107,26 @@ def test_the_explorer_agrees_with_a_plain_search(which, outcome):
     assert ex.verdicts["deadlock"].status == "holds"
     assert ex.verdicts["mission-completion"].status == ("holds" if which == "ok" else "violated")
     assert ex.verdicts["mission-failure"].status == ("holds" if which == "ok" else "violated")
+
+
+def test_the_search_goes_on_through_a_task_run():
+    """sensor::aimed is task-initialised: the mission's read runs sensor's task aim, whose recipe
+    holds the ptu. When the inspector's constraint conflicts with it, the calling context is aim's
+    ensure, then the task run (which has no other task set), then the mission's request from
+    outside. The search used to stop at the task run, leaving its search fact behind, and the
+    inspector's constraint waited for the ptu instead of failing with the concurrency issue."""
+    model = compile_spec(load_spec(DATA / "taskrun_context.roar"), REQUEST)
+    through_run = 0
+    for seed in range(8):
+        left: list = []
+        r = run_model(model, seed=seed, on_state=lambda ctx: left.__setitem__(slice(None), _facts(ctx, "cres")))
+        chain = [e for e in r.events if e.kind == "calling-context"]
+        assert chain, "every schedule of this network meets the conflict"
+        assert chain[-1].text.endswith("is a request from outside: the conflict cannot be resolved")
+        assert left == []   # no search is left half-way
+        if any(e.agent == "sensor" for e in chain):   # the holder was aim's ensure: R2 is the task run
+            through_run += 1
+            assert [e.agent for e in chain] == ["ptu", "sensor", "mission"]
+            assert r.outcome == "failure"
+            assert any(x.startswith("concurrency: task ptu::point is held") for x in r.error_context)
+    assert through_run >= 2
