@@ -1003,7 +1003,9 @@ class _Compiler:
     def division_failures(self, st: a.Stmt, s: str, cx: _Ctx, kind: str, at: Optional[list] = None) -> None:
         """A division by zero in the statement's expressions is a local failure of the recipe at
         this site (the engine's division has no value there, so without these rules the recipe
-        would block, and the explorer would call it a deadlock)."""
+        would block, and the explorer would call it a deadlock). In an initialiser run at start
+        (``self.starting``, :meth:`start_code`) it is an error of the start instead: the request
+        from outside, not sent yet, fails with the division as its error context."""
         if isinstance(st, (a.Set, a.Let)):
             roots = [st.value]
         elif isinstance(st, (a.Wait, a.Assert)):
@@ -1017,14 +1019,42 @@ class _Compiler:
             return
         E = cx.envpat()
         prem, outs = self.premises(cx)
+        starting = getattr(self, "starting", None)   # (an initialiser run at start: its text)
         for k, d in enumerate(divisors):
-            where = self.site("div", cx.agent, cx.task, cx.recipe, d.pos,
-                              f"division by zero: {format_expr(d)} is 0 in {self.model.sites[s].text}")
+            where = self.division_site(cx.agent, cx.task, cx.recipe, d, starting or self.model.sites[s].text)
             for j, head in enumerate(at or [s]):   # (timed: the statement's polled forms too)
+                zero = f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0)"
+                if starting is not None:
+                    # at start (start_code): the agents cannot start; the request from outside,
+                    # not sent yet, fails with the division as its error context
+                    self.rules.append(
+                        f"{s}_div{chr(97 + k)} : ctl I m_run (ccons {head} C) {E} -o rstat I go{prem}{zero}"
+                        f" -o sgate R -o hs R _ _ _ _ _\n"
+                        f"  -o {{rs R s_failure * ecf R (vcons (vsite {where}) vnil){outs}}}.")
+                    continue
                 self.rules.append(
                     f"{s}_div{chr(97 + k)}{'_poll' * j} : ctl I m_run (ccons {head} C) {E} -o rstat I go{prem}"
-                    f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0) -o act I R0 T0 Rc0 N\n"
+                    f"{zero} -o act I R0 T0 Rc0 N\n"
                     f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
+
+    @staticmethod
+    def own_divisors(e: a.Expr) -> list[a.Expr]:
+        """The divisors of the divisions ``e`` evaluates itself, in evaluation order: not those in
+        the arguments of its calls (their call sites evaluate them)."""
+        out: list[a.Expr] = []
+        if isinstance(e, a.Call):
+            return out
+        if isinstance(e, a.Binary) and e.op == "/":
+            out.append(e.right)
+        for ch in e.children():
+            if isinstance(ch, a.Expr):
+                out += _Compiler.own_divisors(ch)
+        return out
+
+    def division_site(self, ag: a.Agent, task: str, recipe: str, d: a.Expr, where: str) -> str:
+        """The site naming a division by zero of divisor ``d`` in ``where`` (the reason a located
+        failure gives: ``division by zero: D is 0 in WHERE``)."""
+        return self.site("div", ag, task, recipe, d.pos, f"division by zero: {format_expr(d)} is 0 in {where}")
 
     def where_cst(self, base: str, cells: list[str]) -> str:
         """The constant a send of constraint ``base`` with a where clause writing ``cells`` uses:
@@ -1114,6 +1144,16 @@ class _Compiler:
                 f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o chk I R Rc N -o {hsp}{prem}\n"
                 f"  -o !peval vnil {E} EC {cond} (vbool B) -o !pre_count B N N1\n"
                 f"  -o {{ctl I m_run C E * rstat I go * chk I R Rc N1 * {hsp}{outs}}}.")
+            # a division by zero: the pre-condition cannot be evaluated, so the recipe is not
+            # acceptable (as when a call in it fails), the division in the request's error context
+            hsp1 = hsp.replace(" EC ", " EC1 ")
+            for k, d in enumerate(self.own_divisors(e)):
+                where = self.division_site(ag, t.name, r.name, d, f"pre-condition {format_expr(e)}")
+                self.rules.append(
+                    f"{s}_div{chr(97 + k)} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o chk I R Rc N -o {hsp}{prem}\n"
+                    f"  -o !peval vnil {E} EC {self.pexp(d, cx)} (vnum 0) -o !num_add N 1000 N1"
+                    f" -o !ec_add (k_local {where}) EC EC1\n"
+                    f"  -o {{ctl I m_run (ccons s_pdone cnil) E * rstat I go * chk I R Rc N1 * {hsp1}{outs}}}.")
             for _ in range(cx.pushed):
                 env.pop(0)
             pre_code += cx.hoisted + [s]
@@ -1578,37 +1618,56 @@ class _Compiler:
         callable in a run), arguments first, then its evaluation, which pushes its value. Every
         expression is evaluated on the snapshot the decision takes (``lsnap I S``: the agent's
         variables with the where values in place). A failed call makes its pre-condition false
-        (as in a recipe's pre-condition check)."""
+        (as in a recipe's pre-condition check), and so does a division by zero (at the call site
+        that evaluates its arguments, or at the pre-condition's site), which also puts the
+        division, located, in the request's error context."""
         code: list[str] = []
         spans = []   # per pre-condition: its call sites (with their pushes before them), its end
+        divs: list[tuple[str, int, list]] = []   # per site: its pushes, its divisions (site, divisor)
         for cell, q, t in self.logic_pres[tag.name]:
             cx = _Ctx(self, tag, [], snapshot=True, task=t.name)
             calls: list[tuple[str, int]] = []
-            self.logic_calls(q, cx, calls)
+            text = f"pre-condition of task {t.name}: {format_expr(q)}"
+            self.logic_calls(q, cx, calls, divs, text)
             cond = self.pexp(q, cx)
-            s = self.site("lpre", tag, t.name, "", q.pos, f"pre-condition of task {t.name}: {format_expr(q)}")
+            s = self.site("lpre", tag, t.name, "", q.pos, text)
             E = cx.envpat()
             self.rules.append(
                 f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o lsnap I S -o !peval S {E} vnil {cond} X"
                 f"\n  -o {{ctl I m_run C (vcons X E) * rstat I go * lsnap I S}}.")
+            divs.append((s, cx.pushed, [(self.division_site(tag, t.name, "", d, text), self.pexp(d, cx))
+                                        for d in self.own_divisors(q)]))
             code += [x for x, _n in calls] + [s]
-            spans.append((calls, len(code)))
+            spans.append((calls + [(s, cx.pushed)], len(code)))
+        found = {x: (pushed, ds) for x, pushed, ds in divs}
         for calls, end in spans:
             rest = self._code(code[end:])
             for x, pushed in calls:
                 E = "E"
                 for i in range(pushed):
                     E = f"(vcons H{i + 1} {E})"
-                self.rules.append(f"{x}_false : ctl I (m_call D {x}) _ {E} -o callfail D -o lsnap I S"
-                                  f"\n  -o {{ctl I m_run {rest} (vcons (vbool ff) E) * lsnap I S}}.")
+                if not x.endswith("_lpre"):
+                    self.rules.append(f"{x}_false : ctl I (m_call D {x}) _ {E} -o callfail D -o lsnap I S"
+                                      f"\n  -o {{ctl I m_run {rest} (vcons (vbool ff) E) * lsnap I S}}.")
+                # a division by zero where the site evaluates: the pre-condition cannot be evaluated,
+                # so it is false (its task is unusable for this decision), and the division goes in
+                # the request's error context (the located reason if the request then fails)
+                hs = "hs R (h_lq I) EC F Pl W"
+                for k, (where, d) in enumerate(found[x][1]):
+                    self.rules.append(
+                        f"{x}_div{chr(97 + k)} : ctl I m_run (ccons {x} C) {E} -o rstat I go -o lsnap I S -o {hs}"
+                        f"\n  -o !peval S {E} vnil {d} (vnum 0) -o !ec_add (k_local {where}) EC EC1"
+                        f"\n  -o {{ctl I m_run {rest} (vcons (vbool ff) E) * rstat I go * lsnap I S"
+                        f" * {hs.replace(' EC ', ' EC1 ')}}}.")
         return code
 
-    def logic_calls(self, e: a.Expr, cx: _Ctx, out: list) -> None:
+    def logic_calls(self, e: a.Expr, cx: _Ctx, out: list, divs: Optional[list] = None, text: str = "") -> None:
         """The calls of a task pre-condition, arguments first, as sites of the logic activation
-        (their arguments evaluated on its snapshot); each pushes its result."""
+        (their arguments evaluated on its snapshot); each pushes its result. ``divs`` gets, per
+        call site, the divisions its arguments make (their sites, named in ``text``, and divisors)."""
         if isinstance(e, a.Call):
             for x in e.args:
-                self.logic_calls(x, cx, out)
+                self.logic_calls(x, cx, out, divs, text)
             found = self.spec.resolve_function(cx.agent, e)
             if found:
                 owner = found[0][0]
@@ -1630,13 +1689,16 @@ class _Compiler:
                 f"  -o {{Exists d. pending {fc} {self._list(vals)} d * ctl I (m_call d {s}) C {E} * rstat I go"
                 f" * lsnap I S}}.")
             out.append((s, cx.pushed))
+            if divs is not None:
+                divs.append((s, cx.pushed, [(self.division_site(cx.agent, cx.task, "", d, text), self.pexp(d, cx))
+                                            for x in e.args for d in self.own_divisors(x)]))
             cx.slots[id(e)] = len(cx.env)
             cx.env.insert(0, "")
             cx.pushed += 1
             return
         for ch in e.children():
             if isinstance(ch, a.Expr):
-                self.logic_calls(ch, cx, out)
+                self.logic_calls(ch, cx, out, divs, text)
 
     def start_code(self) -> Optional[str]:
         """The initialisers that call the functional layer (or read a variable initialised so),
@@ -1645,8 +1707,10 @@ class _Compiler:
         one ``set`` per such variable (its calls first, as in a recipe: each call is one step,
         answered by the functional layer: the declared outcomes in exploration, so the start
         state branches, the Python callable in a run). A call that fails leaves the variable at
-        its type's default. The request is sent (``start_done``) when all are done. Returns the
-        code's text, or None when no variable needs it."""
+        its type's default. A division by zero in one is an error of the start: the request from
+        outside fails at once, not sent, with the division as its error context (the agents cannot
+        start: :meth:`division_failures`). The request is sent (``start_done``) when all are done.
+        Returns the code's text, or None when no variable needs it."""
         if not self.started:
             return None
         code: list[str] = []
@@ -1654,7 +1718,10 @@ class _Compiler:
         stub_t, stub_r = a.Task("", pos=None), a.Recipe("", pos=None)
         for ag, v in self.started:
             st = a.Set(a.Name(v.name, pos=v.pos), v.init, pos=v.init.pos)
+            # (a division by zero in it: the agents cannot start, division_failures)
+            self.starting = f"initial value of {ag.name}::{v.name}: {format_expr(v.init)}"
             sites = self.stmt(ag, stub_t, stub_r, st, [])
+            self.starting = None
             for x in sites:
                 self.start_sites.add(x)
                 self.model.sites[x].text = (f"initial value of {ag.name}::{v.name}: {format_expr(v.init)}"
@@ -1731,6 +1798,13 @@ class _Compiler:
         # the decision records the tree it commits as the handler's plan at once (an abort that came
         # before tasks_chosen would leave it in the mask: framework, `committed`)
         plan, pl = " -o !committed D Pl1", "Pl1"
+        # a division by zero in the predicate: it cannot be evaluated (its rules below would be
+        # disabled); per divisor, where the predicate is evaluated, a rule that fires when the divisor
+        # is 0 and gives the located reason: the decision fails the request, the final check finds
+        # the constraint violated, a held ensure is broken (each with the division in the error
+        # context); see constraint_divisions
+        zeros = self.constraint_divisions(c)
+        first = len(self.rules)
         if tag.name in self.logic_pres:
             self.logic_select(c, tag, rq, reads, back, snap(newv), snap(vars_), wl, pred_p)
         else:
@@ -1763,6 +1837,59 @@ class _Compiler:
                 f"  -o {{{again} * rstat J Z1 * act J R0 T0 Rc0 N0 * rs R0 S1}}.")
             self.rules.append(
                 f"ensure_broken_top_{c} : {head} -o !detached J\n  -o {{{again}}}.")
+        for k, (where, d) in enumerate(zeros):
+            self.division_decisions(c, tag, first, k, where, d, rq, reads, back, snap(newv), snap(vars_), wl, pred_p)
+
+    def constraint_divisions(self, c: str) -> list[tuple[str, str]]:
+        """The divisions of constraint ``c``'s predicate: per divisor, the site naming it and the
+        divisor as a pexp over the snapshot."""
+        tag, pred = self.cst_ast[c]
+        pcx = _Ctx(self, tag, [], snapshot=True)
+        return [(self.division_site(tag, "", "", d, f"constraint {self.model.csts[c][1]}"), self.pexp(d, pcx))
+                for d in self.own_divisors(pred)]
+
+    def division_decisions(self, c: str, tag: a.Agent, first: int, k: int, where: str, d: str, rq: str,
+                           reads: str, back: str, snap_w: str, snap: str, wl: str, pred_p: str) -> None:
+        """The rules of :meth:`constraint_rules` for a divisor ``d`` of ``c``'s predicate that is 0
+        (site ``where``): the decision (``select_cN``, ``reselect_cN``; with a logic activation, the
+        decision after it) fails the request, as when there is no task (4.3: the constraint cannot
+        be decided), the final check gives the verdict false (the constraint is not established),
+        and a held ensure is broken (the ensure re-check rules, timed or not, from ``first`` on,
+        copied with the divisor's premise). Each adds the division to the error context."""
+        n = chr(97 + k)
+        ec = f"-o !ec_add (k_local {where}) EC EC1"
+        fail = f"rs R s_failure * ecf R EC1 * {rq}"
+        names = []
+        if tag.name in self.logic_pres:
+            # (the predicate reads no pre-condition cell: the snapshot the logic activation took)
+            names.append(f"select_{c}_div{n}")
+            self.rules.append(
+                f"{names[-1]} : hs R (h_lq I) EC F Pl W -o lsnap I S -o ctl I m_run cnil _ -o rstat I go -o {rq}"
+                f" -o rs R _\n  -o !peval S vnil vnil {d} (vnum 0) {ec}\n  -o {{{fail}}}.")
+        else:
+            names.append(f"select_{c}_div{n}")
+            self.rules.append(
+                f"{names[-1]} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq}{reads}\n"
+                f"  -o !peval {snap_w} vnil vnil {d} (vnum 0) {ec}\n  -o {{{fail}{back}}}.")
+            names.append(f"reselect_{c}_div{n}")
+            self.rules.append(
+                f"{names[-1]} : hs R h_select EC F Pl vnone -o rs R _ -o {rq}{reads}\n"
+                f"  -o !peval {snap} vnil vnil {d} (vnum 0) {ec}\n  -o {{{fail}{back}}}.")
+        names.append(f"final_{c}_div{n}")
+        self.rules.append(
+            f"{names[-1]} : hs R h_final EC F Pl W -o {rq}{reads}\n"
+            f"  -o !peval {snap} vnil vnil {d} (vnum 0) {ec}\n"
+            f"  -o {{hs R (h_verdict ff) EC1 F Pl W * {rq}{back}}}.")
+        broke = f"!peval {snap} vnil vnil {pred_p} (vbool ff) -o !ec_broke {c} EC EC1"
+        for rule in self.rules[first:]:
+            name = rule.split(" : ", 1)[0]
+            if name in (f"ensure_broken_{c}", f"ensure_broken_top_{c}") and broke in rule:
+                names.append(f"{name}_div{n}")
+                self.rules.append(f"{names[-1]} : " + rule.split(" : ", 1)[1].replace(
+                    broke, f"!peval {snap} vnil vnil {d} (vnum 0) -o !ec_add (k_local {where}) EC EC0"
+                           f" -o !ec_broke {c} EC0 EC1"))
+        for x in names:
+            self.guards[x] = (tag.name, "hs")
 
     def logic_select(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap_w: str, snap: str,
                      wl: str, pred_p: str) -> None:
