@@ -219,6 +219,29 @@ aborted_held : abortreq R -o hs R (h_heldt D) _ _ Pl _ -o rs R _ -o rq R A _ _ _
 """
 
 
+#: the rules that join crashes and time, added only to a spec compiled timed with crashes: what a
+#: crash stops or fails also gives up its deadline, so a dead agent keeps no timer alive
+CRASH_TIME_TEXT = """
+% a sleeping activation (a wait or an assert of its body or its end block) of a dead request stops
+% at once, its deadline gone, as crash_stop_* stop the others
+crash_stop_sleep : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o alive I -o ctl I (m_sleep D) _ L -o rstat I _ -o clock T0 -o tmrs Lt -o !tm_rm D Lt Lt1
+                  -o !clk_norm Lt1 T0 T1
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go * clock T1 * tmrs Lt1}.
+crash_stop_end_sleep : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o cep A E -o !ep_dead F E
+                  -o ending I Kn -o !not_crash Kn -o ctl I (m_sleep D) _ L -o rstat I _ -o clock T0 -o tmrs Lt
+                  -o !tm_rm D Lt Lt1 -o !clk_norm Lt1 T0 T1
+                  -o {act I R T Rc N * hs R Ph EC F Pl W * rq R A C J K * cep A E
+                      * ending I k_crash * ctl I m_run (ccons s_done cnil) L * rstat I go * clock T1 * tmrs Lt1}.
+% a held ensure waiting for its periodic re-check, of a dead request, fails as the other phases do
+% (unavailable), and its re-check is cancelled
+unavailable_heldt : hs R (h_heldt D) EC F Pl _ -o rq R A C J K -o cep A E -o !ep_dead F E -o rs R _
+               -o mask A M -o !mrm M Pl M1 -o clock T0 -o tmrs Lt -o !tm_rm D Lt Lt1 -o !clk_norm Lt1 T0 T1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1
+                   * clock T1 * tmrs Lt1}.
+"""
+
 @dataclass(frozen=True)
 class Timing:
     """The time abstraction a spec is compiled with (docs/semantics.md, "Time"): ``mode``
@@ -990,6 +1013,8 @@ class _Compiler:
         """Timed mode: the clock's declarations and rules, its tables, the ensures' periods."""
         n = self.cycle
         out = ["", TIME_TEXT.strip()]
+        if self.crashes:
+            out.append(CRASH_TIME_TEXT.strip())
         out += [f"tnext_{k} : tnext {k} {(k + 1) % n}." for k in range(n)]
         out += [f"tafter_{p}_{k} : tafter {p} {k} {(k + p) % n}." for p in sorted(self.periods) for k in range(n)]
         out += [f"eperiod_{c} : eperiod {c} {p}." for c, p in sorted(self.eperiods.items())]
@@ -1781,7 +1806,7 @@ class _Compiler:
                 cells.append(w)
         vars_ = {cell: f"V{i + 1}" for i, cell in enumerate(cells)}
         wvars = {cell: f"W{i + 1}" for i, cell in enumerate(where)}
-        for prefix in ("select_", "reselect_", "final_", "ensure_broken_", "ensure_broken_top_"):
+        for prefix in ("select_", "reselect_", "final_", "ensure_broken_", "ensure_broken_top_", "ensure_check_"):
             self.guards[prefix + c] = (tag.name, "hs")
         pred_p = self.cst_pexp[c]
         rq = f"rq R a_{tag.name} {c} J K"
@@ -2233,9 +2258,6 @@ def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[R
         raise RoarError("the request must name exactly one agent", req.pos)
     check_crashes(checked.spec, crashes)
     timing = timing_of(time)
-    if timing and crashes:
-        raise RoarError("the timed mode and crashes cannot be combined yet (docs/semantics.md, Known gaps): "
-                        "check the crashes untimed", timing.where[0] if timing.where else None)
     model = _Compiler(checked.with_types(typed), registry, functional, crashes, timing).compile(req)
     model.crashes = crashes if crashes else None
     model.timing = timing

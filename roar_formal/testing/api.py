@@ -104,6 +104,9 @@ def as_budget(budget: BudgetLike) -> Budget:
     if isinstance(budget, Budget):
         return budget
     keys = {"max_states", "max_seconds", "max_memory_mb"}
+    if not isinstance(budget, Mapping):
+        raise RoarError(f"budget is a mapping such as {{'max_states': 100000, 'max_seconds': 60}} or a Budget, "
+                        f"not {budget!r}")
     unknown = set(budget) - keys
     if unknown:
         raise RoarError(f"unknown budget key {sorted(unknown)[0]!r}; expected one of: {', '.join(sorted(keys))}")
@@ -350,8 +353,6 @@ class AgentSpec:
                   functional=self.functional)
         job.crashes = Crashes(tuple([crash] if isinstance(crash, str) else crash), max_crashes) if crash else None
         job.time = _timing(time, wait_timeout)
-        if job.time and job.crashes:
-            raise RoarError("the timed mode and crashes cannot be combined yet (docs/semantics.md, Known gaps)", pos)
         return _explore(job)
 
     def explore_on_robot(self, request: str, scenario: PathLike,

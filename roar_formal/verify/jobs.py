@@ -571,9 +571,6 @@ def load_job(path: str | Path) -> Job:
             if job.time and job.robot is not None:
                 raise RoarError("the timed mode is for a job on the model; on the robot, time is the robot's "
                                 "simulated time", job.time.where[0])
-            if job.time and job.crashes:
-                raise RoarError("the timed mode and [faults] crash cannot be combined yet (docs/semantics.md, "
-                                "Known gaps): check the crashes untimed", job.time.where[0])
     else:
         if "robot" in d:
             raise RoarError("'robot' belongs to a job on a spec ('spec = ...'): the robot is the functional layer "

@@ -441,7 +441,6 @@ def test_a_bad_header_is_refused(tmp_path):
     ('[time]\nwait_timeout = 2.5\n', "not 2.5", 4, 16),
     ('[time]\nmode = "untimed"\nwait_timeout = 100\n', "wait_timeout needs mode = \"timed\"", 5, 16),
     ('[time]\nperiod = 100\n', "unknown key 'period' in [time]", 4, 1),
-    ('time = "timed"\n[faults]\ncrash = ["door"]\n', "cannot be combined yet", 3, 8),
 ])
 def test_bad_time_values_are_located(tmp_path, roar_cli, extra, fragment, line, col):
     job = write_job(tmp_path, TIMEOUT_SPEC, OPEN, extra)
@@ -587,8 +586,9 @@ def test_the_api_runs_and_explores_timed():
     e = spec.explore(OPEN, properties=["deadlock", "mission-failure"], time="timed", wait_timeout=250)
     assert e.verdicts["deadlock"].status == "holds" and e.verdicts["mission-failure"].status == "violated"
     assert spec.explore(OPEN, properties=["deadlock"]).verdicts["deadlock"].status == "violated"
-    with pytest.raises(RoarError, match="cannot be combined"):
-        spec.explore(OPEN, crash=["door"], time="timed")
+    e = spec.explore(OPEN, properties=["deadlock", "mission-failure"], crash=["door"], time="timed",
+                     wait_timeout=250)   # (timed and crashes together: tests/roar/test_time_crashes.py)
+    assert e.verdicts["deadlock"].status == "holds" and e.verdicts["mission-failure"].status == "violated"
 
 
 def test_the_timed_mode_on_a_spec_without_periods_is_refused(tmp_path, roar_cli):
