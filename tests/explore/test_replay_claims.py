@@ -25,6 +25,8 @@ CONFIRMED = [   # (job, property, model replayed on)
     ("aim.toml", "mission-failure", FAULTY / "aim.roar"),
     ("camera_retry.toml", "mission-completion", FAULTY / "camera_retry.roar"),
     ("retry_forever.toml", "livelock", FAULTY / "retry_forever.roar"),
+    ("survey.toml", "mission-failure", FAULTY / "survey.roar"),              # (a crash: recompiled with it)
+    ("track_switch.toml", "mission-failure", FAULTY / "track_switch.roar"),
     ("philosophers_ll5.toml", "livelock", ROOT / "models" / "philosophers" / "ll.clf"),
 ]
 

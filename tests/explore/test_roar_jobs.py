@@ -59,12 +59,13 @@ def big(fn, *args):
 # ------------------------------------------------------------------ 1. expected verdicts
 
 
-def test_the_spec_jobs_are_the_fourteen_seeded_faults_and_fixes_and_two_examples():
+def test_the_spec_jobs_are_the_eighteen_seeded_faults_and_fixes_and_two_examples():
     assert SPEC_JOBS == ["aim.toml", "aim_fixed.toml", "camera_bounded.toml", "camera_retry.toml", "conflict.toml",
                          "demo_loco.toml", "door_sensor.toml", "door_sensor_fixed.toml",
                          "ensure_slammed.toml", "ensure_slammed_fixed.toml",
                          "mutual_make.toml", "mutual_make_fixed.toml", "ordered_pick.toml", "ordered_pick_fixed.toml",
-                         "retry_bounded.toml", "retry_forever.toml"]
+                         "retry_bounded.toml", "retry_forever.toml", "survey.toml", "survey_fixed.toml",
+                         "track_switch.toml", "track_switch_fixed.toml"]
 
 
 @pytest.mark.parametrize("name", SPEC_JOBS)
