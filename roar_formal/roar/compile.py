@@ -367,6 +367,7 @@ class CompiledModel:
     fn_types: dict[str, str] = field(default_factory=dict)               # const -> result type
     fn_params: dict[str, list] = field(default_factory=dict)             # const -> parameter types
     sites: dict[str, Site] = field(default_factory=dict)
+    rule_sites: dict[str, str] = field(default_factory=dict)   # rule of a statement site -> the site const
     request_cst: str = ""
     request_agent: str = ""
     structs: dict[str, list[str]] = field(default_factory=dict)          # type -> field names
@@ -386,6 +387,11 @@ class CompiledModel:
     timing: Optional[Timing] = None     # timed mode (None: untimed; docs/semantics.md, Time)
     tick_ms: Optional[int] = None       # timed, with a clock: one tick in ms (the gcd of the periods)
     cycle: Optional[int] = None         # ... the clock counts ticks modulo this
+
+    def site_of_rule(self, rule: str) -> Optional[Site]:
+        """The statement site a compiled rule (``stN_kind``, ``stN_kind_false``, ...) belongs to, or None."""
+        c = self.rule_sites.get(rule)
+        return self.sites.get(c) if c is not None else None
 
     def program(self):
         """The CLF program (cached)."""
@@ -536,6 +542,11 @@ class _Compiler:
         self.model.sites[c] = Site(c, kind, ag.name, task, recipe, pos, text, **kw)
         self.out.append(f"{c} : site.")
         return c
+
+    def sites_by_number(self) -> dict[str, str]:
+        """``ppN`` -> the site const ``ppN_kind``: the rules of site N are named ``ppN_...`` while
+        compiling (``stN_...`` in the model)."""
+        return {c.split("_", 1)[0]: c for c in self.model.sites}
 
     # ------------------------------------------------------------ values
     def default(self, ty: Optional[str]) -> str:
@@ -1380,8 +1391,15 @@ class _Compiler:
         # the predicate of each constraint, for the calling-context search (framework: retask)
         o.extend(f"cpred_{c} : cpred {c} {p}." for c, p in sorted(self.cst_pexp.items()))
         self.guard_crashed()
-        # the statement rules: site ppN_kind has rules stN_kind[_false|_wake]
-        o.extend("st" + r[2:] if r.startswith("pp") else r for r in self.rules)
+        # the statement rules: site ppN_kind has rules stN_kind[_false|_wake|...]
+        by_num = self.sites_by_number()
+        for r in self.rules:
+            name = r.split(" : ", 1)[0]
+            site = by_num.get(name.split("_", 1)[0]) if name.startswith("pp") else None
+            if site is not None:
+                m.rule_sites["st" + name[2:]] = site
+                r = "st" + r[2:]
+            o.append(r)
         # functions and outcomes
         if self.functional == "abstract":
             for fc, (owner, name, rty) in sorted(self.pending_fns.items()):
@@ -1469,14 +1487,15 @@ class _Compiler:
         (the framework's ``crash_stop_*`` and ``unavailable*`` rules clean it up)."""
         if not self.crash_agents:
             return
-        by_num = {re.match(r"pp(\d+)_", c).group(1): site for c, site in self.model.sites.items()}
+        by_num = self.sites_by_number()
+        start = {by_num[x.split("_", 1)[0]] for x in self.start_sites}
         for i, rule in enumerate(self.rules):
             name = rule.split(" : ", 1)[0]
-            m = re.match(r"pp(\d+)_", name)
-            if m and f"pp{m.group(1)}" in {x.split("_")[0] for x in self.start_sites}:
+            c = by_num.get(name.split("_", 1)[0]) if name.startswith("pp") else None
+            if c in start:
                 continue   # (the start: before any request, so before any crash)
-            if m:
-                site = by_num[m.group(1)]
+            if c is not None:
+                site = self.model.sites[c]
                 agent = site.agent
                 how = "chk" if site.kind == "pre" else "chkcall" if site.const in self.checker_sites else "act"
             elif name in self.guards:

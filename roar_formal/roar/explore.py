@@ -27,7 +27,6 @@ so the search branches on every outcome). On top of it this module gives:
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import Optional
 
@@ -65,7 +64,6 @@ EXCLUSIVE_WRITES_FAMILIES = frozenset({"rq", "hs"})
 
 _REQ_FAMILIES = V.REQUEST_FAMILIES
 _INST_FAMILIES = V.INSTANCE_FAMILIES
-_SITE_RULE = re.compile(r"st(\d+)_([a-z_]+?)(?:_false|_wake|_poll_false|_poll|_timeout|_sleep)?$")
 
 
 _h = V.head_name
@@ -255,11 +253,9 @@ class RoarSystem(ClfSystem):
         """The agent that takes a step: the fairness group of weak fairness per agent."""
         m = self.model
         rule = choice.rule
-        site = _SITE_RULE.match(rule)
-        if site:
-            s = m.sites.get(f"pp{site.group(1)}_{site.group(2)}")
-            if s is not None:
-                return s.agent
+        s = m.site_of_rule(rule)
+        if s is not None:
+            return s.agent
         for prefix in ("select_", "reselect_", "final_"):
             if rule.startswith(prefix) and rule[len(prefix):] in m.csts:
                 return m.csts[rule[len(prefix):]][0]
@@ -351,8 +347,7 @@ class RoarSystem(ClfSystem):
     def _monitor(self, state: Context, nxt: Context, step) -> None:
         consumed = [f for _m, f in step.consumed if type(f) is Root]
         produced = [f for _m, f in step.produced if type(f) is Root]
-        site = _SITE_RULE.match(step.rule)
-        site_c = f"pp{site.group(1)}_{site.group(2)}" if site else None
+        site_c = self.model.rule_sites.get(step.rule)
         if self._kept_formula:
             _remove(nxt, MON_UNDONE, lambda g: True)     # a violation flag lives one state
         old_reqs = {V.rq(f).request for f in consumed if _h(f) == V.RQ}

@@ -390,7 +390,7 @@ class Narrator:
                 kind = self._name(q.kind) if isinstance(q.kind.head, Const) else "?"
                 emitter = q.emitter
                 outside = isinstance(emitter.head, Const) and emitter.head.name == "itop"
-                site = m.sites.get(site_of(st.rule))
+                site = m.sites.get(site_of(m, st.rule))
                 self.req_meta[lab] = {"parent": None if outside else self.inst_req.get(emitter),
                                       "rkind": {"k_make": "make", "k_ensure": "ensure"}.get(kind, "task"),
                                       "emitter": None if outside else self.inst_label(emitter),
@@ -461,7 +461,7 @@ class Narrator:
         for a in map(V.abortreq, st.made(V.ABORTREQ)):
             lab = self.label(a.request)
             agent, text = self.req_info.get(lab, ("?", "?"))
-            site = self.m.sites.get(site_of(st.rule))
+            site = self.m.sites.get(site_of(self.m, st.rule))
             acts = st.used(V.ACT)
             who = site.agent if site else self.acts.get(V.act(acts[0]).inst if acts else None, ("?",))[0]
             yield RoarEvent(st.i, "abort", who, f"abort {lab} ({agent}: {text})", {"request": lab})
@@ -522,7 +522,7 @@ class Narrator:
         for p in map(V.pending, st.made(V.PENDING)):
             owner, name = m.functions[self._name(p.fn)]
             args = ", ".join(_show_value(x) for x in list_items(p.args))
-            site = m.sites.get(site_of(rule))
+            site = m.sites.get(site_of(m, rule))
             agent = site.agent if site else (owner or "?")
             self.calls[p.dest] = (agent, f"{name}({args})")
             self.n_calls += 1
@@ -556,7 +556,7 @@ class Narrator:
     def _writes(self, st: "_StepFacts"):
         m = self.m
         before = {c.cell: c.value for c in map(V.contains, st.used(V.CONTAINS))}
-        site = m.sites.get(site_of(st.rule))
+        site = m.sites.get(site_of(m, st.rule))
         written = f"v_{site.agent}_{site.var}" if site is not None and site.kind == "set" else None
         for x in map(V.contains, st.made(V.CONTAINS)):
             c = x.cell
@@ -608,9 +608,9 @@ def _by_family(facts) -> dict:
     return out
 
 
-def site_of(rule: str) -> str:
-    m = re.match(r"st(\d+)_([a-z_]+?)(?:_false|_wake|_poll_false|_poll|_timeout|_sleep)?$", rule)
-    return f"pp{m.group(1)}_{m.group(2)}" if m else ""
+def site_of(model: CompiledModel, rule: str) -> str:
+    """The site const of a compiled statement rule ("" for a framework rule): the compiler's table."""
+    return model.rule_sites.get(rule, "")
 
 
 def _reason(t, m) -> str:

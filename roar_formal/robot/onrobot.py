@@ -227,7 +227,7 @@ def _answer(state, f, crec, res: CallResult, model, values):
 def _poll_period(model, rule: str) -> Optional[float]:
     if not rule.endswith("_false"):
         return None
-    site = model.sites.get(site_of(rule))
+    site = model.sites.get(site_of(model, rule))
     if site is None or site.kind != "wait":
         return None
     return site.period_ms / 1000.0 if site.period_ms else DEFAULT_POLL

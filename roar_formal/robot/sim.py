@@ -177,7 +177,7 @@ def poll_period(model: CompiledModel, step) -> Optional[float]:
     rule = step.rule
     if not rule.endswith("_false"):
         return None
-    site = model.sites.get(site_of(rule))
+    site = model.sites.get(site_of(model, rule))
     if site is None or site.kind != "wait":
         return None
     for _m, f in step.produced:
@@ -282,7 +282,7 @@ class _Sim:
         p = V.pending(f)
         fc = p.fn.head.name
         owner, name = self.model.functions[fc]
-        site = self.model.sites.get(site_of(self.steps.rule(step - 1)))
+        site = self.model.sites.get(site_of(self.model, self.steps.rule(step - 1)))
         agent = site.agent if site else (owner or "?")
         tys = self.model.fn_params.get(fc, [])
         args = [self.values.python(x, tys[k] if k < len(tys) else None) for k, x in enumerate(list_items(p.args))]

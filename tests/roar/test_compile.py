@@ -381,3 +381,27 @@ def test_any_string_of_the_spec_language_survives_compilation(tmp_path_factory, 
     res = run_model(model, seed=0)
     assert res.outcome == "success"
     assert res.final["a::msg"] == text
+
+
+@pytest.mark.parametrize("spec,request_", [
+    ("models/conflict.roar", "mission::done == true"),
+    ("tests/roar/data/div_recipe_pre.roar", "a::done == true"),
+    ("tests/roar/data/div_logic_pre.roar", "a::x == 1"),
+    ("tests/roar/data/wait_timeout.roar", "door::open == true"),
+])
+def test_every_statement_rule_names_its_site_in_the_table(spec, request_):
+    """The narrator, the explorer's fairness groups and the robot find a rule's statement site in
+    the compiler's table (``rule_sites``), not by reading the rule's name: every rule the compiler
+    made for a site, whatever its suffix (``_false``, ``_poll``, ``_diva``, ...), is there, and no
+    framework rule is."""
+    root = Path(__file__).resolve().parents[2]
+    path = root / spec
+    for time in ("untimed", "timed") if "wait_timeout" in spec else ("untimed",):
+        model = compile_spec(load_spec(path), request_, functional="abstract", time=time)
+        names = model.program().rule_names
+        own = [n for n in names if re.fullmatch(r"st\d+_.*", n)]
+        assert own and set(own) == set(model.rule_sites)
+        for n in own:
+            site = model.site_of_rule(n)
+            assert site is not None and n.startswith("st" + site.const[2:].split("_", 1)[0] + "_"), n
+        assert all(model.site_of_rule(n) is None for n in names if n not in model.rule_sites)
