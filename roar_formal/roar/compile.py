@@ -1428,13 +1428,38 @@ class _Compiler:
         m.init = "Exists r0. " + " * ".join(init)
         o.append(f"\n#exec * {m.init}.")
         body = "\n".join(o) + "\n"
-        sig = extend_framework(body, "<compiled model>")
+        try:
+            sig = extend_framework(body, "<compiled model>")
+        except RoarError as exc:
+            raise self.located(exc, o) from None
         # the logic layer: candidates of every predicate, by proof search (8.2)
         cands = self.candidates(sig)
         m.spec_text = body + cands
         m.text = framework_text() + m.spec_text
         m._program = Program(extend_signature(sig, cands, "<compiled model>"))
         return m
+
+    def located(self, exc: RoarError, out: list[str]) -> RoarError:
+        """A declaration the compiler wrote that does not check is a bug of the compiler, not of
+        the spec; the error points at the spec's statement the declaration was compiled from
+        (its site), with the generated line, so the report says where to look."""
+        if exc.pos is None or exc.pos.file != "<compiled model>":
+            return exc
+        line, decl = 1, ""
+        for text in out:
+            n = text.count("\n") + 1
+            if line <= exc.pos.line < line + n:
+                decl = text
+                break
+            line += n
+        name = decl.split(" : ", 1)[0].strip()
+        site = self.model.site_of_rule(name)
+        where = f"{site.kind} {site.text!r}" if site is not None else f"declaration {name!r}"
+        first = decl.strip().splitlines()[0] if decl.strip() else ""
+        return RoarError(f"internal error: the CLF compiled for {where} does not check: {exc.message}",
+                         site.pos if site is not None else None,
+                         notes=[f"<compiled model>:{exc.pos.line}:{exc.pos.col}: {first}",
+                                "this is a bug of roar-verify's compiler, not of the spec: please report it"])
 
     # ------------------------------------------------------------ crashes (opt-in)
     def stamp(self, target: str) -> tuple[str, str, str]:

@@ -405,3 +405,25 @@ def test_every_statement_rule_names_its_site_in_the_table(spec, request_):
             site = model.site_of_rule(n)
             assert site is not None and n.startswith("st" + site.const[2:].split("_", 1)[0] + "_"), n
         assert all(model.site_of_rule(n) is None for n in names if n not in model.rule_sites)
+
+
+def test_a_declaration_the_compiler_gets_wrong_is_reported_at_the_spec(monkeypatch):
+    """A compiled rule that does not check is a compiler bug: the error names the spec's statement
+    it came from (file:line:col of the statement), the generated line, and says it is a bug."""
+    from roar_formal.roar import compile as c
+    root = Path(__file__).resolve().parents[2]
+    spec = load_spec(root / "models" / "conflict.roar")
+    real = c._Compiler.guard_crashed   # (called once every rule is written, before they are output)
+
+    def broken(self):
+        site = next(s for s in self.model.sites.values() if s.kind == "set")
+        self.rules.append(f"{site.const}_broken : no_such_family I -o {{1}}.")
+        return real(self)
+    monkeypatch.setattr(c._Compiler, "guard_crashed", broken)
+    with pytest.raises(RoarError) as err:
+        compile_spec(spec, "mission::done == true")
+    e = err.value
+    assert e.pos is not None and e.pos.file.endswith("conflict.roar")
+    assert e.message.startswith("internal error: the CLF compiled for set ")
+    assert "no_such_family" in e.message + " ".join(e.notes)
+    assert any(n.startswith("<compiled model>:") and "_broken : no_such_family" in n for n in e.notes)
