@@ -654,10 +654,66 @@ class _Compiler:
         self.rules.append(
             f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go{prem}{evals}\n"
             f"  -o {{Exists d. pending {fc} {self._list(vals)} d * ctl I (m_call d {s}) C E * rstat I go{outs}}}.")
+        self.call_division_failures(e, s, sub, cx)
         cx.hoisted.append(s)
         cx.slots[id(e)] = len(cx.env)
         cx.env.insert(0, "")
         cx.pushed += 1
+
+    def call_division_failures(self, e: a.Call, s: str, sub: _Ctx, cx: _Ctx) -> None:
+        """A division by zero in the arguments of the call of site ``s`` (made by :meth:`hoist_call`):
+        the call is not made (its site cannot evaluate them), and, per divisor, a rule gives the
+        located reason ``division by zero: D is 0 in WHERE`` as the same division outside a call
+        does: in a statement, a local failure of the recipe (WHERE is the statement, set by
+        :meth:`division_failures`); in a recipe's pre-condition check, the recipe is not acceptable,
+        the division in the request's error context; in an initialiser run at start, the request
+        from outside fails before it is sent. (Divisions in the arguments of a nested call are its
+        own call site's.)"""
+        divisors = [d for x in e.args for d in self.own_divisors(x)]
+        if not divisors:
+            return
+        zeros = [self.pexp(d, sub) for d in divisors]   # (before the call's result is pushed)
+        prem, outs = self.premises(sub)
+        starting = getattr(self, "starting", None)   # (an initialiser run at start: its text)
+        pending = self.__dict__.setdefault("call_divs", {})   # call site -> [(division site, divisor)]
+        for k, (d, dp) in enumerate(zip(divisors, zeros)):
+            name = f"{s}_div{chr(97 + k)}"
+            zero = f" -o !peval vnil E vnil {dp} (vnum 0)"
+            head = f"{name} : ctl I m_run (ccons {s} C) E -o rstat I go"
+            if starting is not None:
+                where = self.division_site(cx.agent, cx.task, cx.recipe, d, starting)
+                self.rules.append(f"{head}{prem}{zero} -o sgate R -o hs R _ _ _ _ _\n"
+                                  f"  -o {{rs R s_failure * ecf R (vcons (vsite {where}) vnil){outs}}}.")
+            elif not cx.run_tasks:   # a recipe's pre-condition check (a checker activation)
+                where = self.division_site(cx.agent, cx.task, cx.recipe, d, self.pre_condition_of(e, cx))
+                hsp = "hs R (h_rchk T P Cs Sc Rc) EC F Pl W"
+                # (it reads the checker and the handler itself, as the pre-condition's site does:
+                # named stN_call_divX already, with crashes it is guarded as that site's rules are)
+                name = "st" + name[2:]
+                self.guards[name] = (cx.agent.name, "chk")
+                head = f"{name} : ctl I m_run (ccons {s} C) E -o rstat I go"
+                self.rules.append(
+                    f"{head} -o chk I R Rc N -o {hsp}{prem}{zero} -o !num_add N 1000 N1"
+                    f" -o !ec_add (k_local {where}) EC EC1\n"
+                    f"  -o {{ctl I m_run (ccons s_pdone cnil) E * rstat I go * chk I R Rc N1"
+                    f" * {hsp.replace(' EC ', ' EC1 ')}{outs}}}.")
+            else:   # a statement: its text is known once its site is made (division_failures)
+                where = self.division_site(cx.agent, cx.task, cx.recipe, d, format_expr(e))
+                pending.setdefault(s, []).append((where, d))
+                self.rules.append(
+                    f"{head}{prem}{zero} -o act I R0 T0 Rc0 N\n"
+                    f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
+
+    @staticmethod
+    def pre_condition_of(e: a.Call, cx: _Ctx) -> str:
+        """The recipe pre-condition that makes call ``e`` (its text, for a division's reason)."""
+        for t in cx.agent.tasks:
+            for r in t.recipes:
+                if (t.name, r.name) == (cx.task, cx.recipe):
+                    for p in r.pre:
+                        if any(n is e for n in a.walk(p)):
+                            return f"pre-condition {format_expr(p)}"
+        return f"pre-condition call {format_expr(e)}"
 
     def pexp(self, e: a.Expr, cx: _Ctx) -> str:
         """``e`` as a pexp term (after :meth:`prepare`): cells read as premises, calls as their pushed results."""
@@ -1042,6 +1098,12 @@ class _Compiler:
         would block, and the explorer would call it a deadlock). In an initialiser run at start
         (``self.starting``, :meth:`start_code`) it is an error of the start instead: the request
         from outside, not sent yet, fails with the division as its error context."""
+        # the divisions in the arguments of the statement's calls: their call sites' rules
+        # (call_division_failures), whose reason names the statement
+        for x in cx.hoisted:
+            for where, d in self.__dict__.get("call_divs", {}).pop(x, []):
+                self.model.sites[where].text = (f"division by zero: {format_expr(d)} is 0 in "
+                                                f"{self.model.sites[s].text}")
         if isinstance(st, (a.Set, a.Let)):
             roots = [st.value]
         elif isinstance(st, (a.Wait, a.Assert)):
@@ -1050,7 +1112,8 @@ class _Compiler:
             roots = list(st.constraint.writes(cx.agent.name).values())
         else:
             return
-        divisors = [n.right for e in roots for n in a.walk(e) if isinstance(n, a.Binary) and n.op == "/"]
+        # (those in a call's arguments are its call site's: the statement sees the call's result)
+        divisors = [d for e in roots for d in self.own_divisors(e)]
         if not divisors:
             return
         E = cx.envpat()
@@ -1261,7 +1324,9 @@ class _Compiler:
 
         A pre-condition conjunct that calls the functional layer or reads the error context
         (``last_error?``) cannot be decided inside this one step; it is taken as true (the
-        recipe selection that follows the switch still checks it)."""
+        recipe selection that follows the switch still checks it). A conjunct that divides by zero
+        cannot be evaluated, so it does not hold (``pholds``: false when it has no value), and
+        its recipe is not acceptable, as in a recipe's pre-condition check."""
         options = []
         for q in others:
             conj = [x for e in q.pre for x in a.conjuncts(e)
@@ -1270,6 +1335,8 @@ class _Compiler:
             form = "(pl (vbool tt))"
             for x in reversed(conj):
                 px = self.pexp(x, cx)
+                if self.own_divisors(x):
+                    px = f"(pholds {px})"
                 form = px if form == "(pl (vbool tt))" else f"(pbin o_and {px} {form})"
             options.append(form)
         cond = options[0]
@@ -1914,8 +1981,36 @@ class _Compiler:
         divisor as a pexp over the snapshot."""
         tag, pred = self.cst_ast[c]
         pcx = _Ctx(self, tag, [], snapshot=True)
-        return [(self.division_site(tag, "", "", d, f"constraint {self.model.csts[c][1]}"), self.pexp(d, pcx))
-                for d in self.own_divisors(pred)]
+        out = [(self.division_site(tag, "", "", d, f"constraint {self.model.csts[c][1]}"), self.pexp(d, pcx))
+               for d in self.own_divisors(pred)]
+        # last, when the target's task pre-conditions divide (the decision's search evaluates them):
+        # (None, their divisions), for division_decisions to record the one that is 0
+        pres = self.pre_divisions(tag)
+        if pres:
+            out.append((None, self._list([f"(vpair (vpexp {d}) (vsite {w}))" for w, d in pres])))
+        return out
+
+    def pre_divisions(self, ag: a.Agent) -> list[tuple[str, str]]:
+        """The divisions of ``ag``'s task pre-conditions that the decision's search evaluates (those
+        without a call: the logic activation evaluates the others), in declaration order: per
+        divisor, the site naming it and the divisor as a pexp over the snapshot. The search counts a
+        pre-condition it cannot evaluate as unmet and not plannable (framework: ``um_noval``), so
+        its task is not usable for the decision."""
+        known = self.__dict__.setdefault("pre_divs", {})
+        if ag.name not in known:
+            pcx = _Ctx(self, ag, [], snapshot=True)
+            got = []
+            for t in ag.tasks:
+                for e in t.pre:
+                    calls = any(True for _ in a.calls(e))
+                    for q in (a.conjuncts(e) if calls else [e]):
+                        if any(True for _ in a.calls(q)):
+                            continue
+                        text = f"pre-condition of task {t.name}: {format_expr(q)}"
+                        got += [(self.division_site(ag, t.name, "", d, text), self.pexp(self._qualify(d, ag.name), pcx))
+                                for d in self.own_divisors(q)]
+            known[ag.name] = got
+        return known[ag.name]
 
     def division_decisions(self, c: str, tag: a.Agent, first: int, k: int, where: str, d: str, rq: str,
                            reads: str, back: str, snap_w: str, snap: str, wl: str, pred_p: str) -> None:
@@ -1925,6 +2020,9 @@ class _Compiler:
         be decided), the final check gives the verdict false (the constraint is not established),
         and a held ensure is broken (the ensure re-check rules, timed or not, from ``first`` on,
         copied with the divisor's premise). Each adds the division to the error context."""
+        if where is None:   # (the divisions of the task pre-conditions: constraint_divisions)
+            self.record_pre_divisions(c, first, d, pred_p)
+            return
         n = chr(97 + k)
         ec = f"-o !ec_add (k_local {where}) EC EC1"
         fail = f"rs R s_failure * ecf R EC1 * {rq}"
@@ -1959,6 +2057,29 @@ class _Compiler:
                            f" -o !ec_broke {c} EC0 EC1"))
         for x in names:
             self.guards[x] = (tag.name, "hs")
+
+    def record_pre_divisions(self, c: str, first: int, divs: str, pred_p: str) -> None:
+        """The decisions on ``c`` (``select_cN``, ``reselect_cN``, from rule ``first`` on) when
+        its target's task pre-conditions divide (``divs``, :meth:`pre_divisions`): a decision that
+        finds no task puts the first of those divisions whose divisor is 0 on its snapshot in the
+        request's error context (framework: ``dec_zero``), the located reason when the request
+        then fails. A rule of another shape is left as it is (it records nothing)."""
+        if "ec_opt" not in self.__dict__:
+            self.ec_opt = True
+            self.out.append("ec_opt : val -> val -> val -> type.\n"
+                            "eco_none : ec_opt vnone EC EC.\n"
+                            "eco_some : ec_opt (vsome (vsite W)) EC EC1 <- ec_add (k_local W) EC EC1.")
+        head = f"!decide_k K {pred_p} "
+        for i in range(first, len(self.rules)):
+            rule = self.rules[i]
+            if rule.split(" : ", 1)[0] not in (f"select_{c}", f"reselect_{c}"):
+                continue
+            at, end = rule.find(head), rule.find(" F MT D -o ")
+            if at < 0 or end < at or rule.count("(h_dec D) EC F ") != 1 or " EC1 " in rule:
+                continue
+            snap = rule[at + len(head):end]
+            self.rules[i] = (rule[:end] + f" F MT D -o !dec_zero D {snap} {divs} O -o !ec_opt O EC EC1"
+                             + rule[end + len(" F MT D"):]).replace("(h_dec D) EC F ", "(h_dec D) EC1 F ")
 
     def logic_select(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap_w: str, snap: str,
                      wl: str, pred_p: str) -> None:
