@@ -1944,14 +1944,16 @@ class _Compiler:
         if tag.name in self.logic_pres:
             self.logic_select(c, tag, rq, reads, back, snap(newv), snap(vars_), wl, pred_p)
         else:
+            zero, ec = self.pre_division_premise(tag, snap(newv))
             self.rules.append(
                 f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
-                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D -o !commit D R M M1{plan}\n"
-                f"  -o {{hs R (h_dec D) EC F {pl} (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
+                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D{zero} -o !commit D R M M1{plan}\n"
+                f"  -o {{hs R (h_dec D) {ec} F {pl} (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
+            zero, ec = self.pre_division_premise(tag, snap(vars_))
             self.rules.append(
                 f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
-                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D -o !commit D R M M1{plan}\n"
-                f"  -o {{hs R (h_dec D) EC F {pl} vnone * {rq} * mask a_{tag.name} M1{back}}}.")
+                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D{zero} -o !commit D R M M1{plan}\n"
+                f"  -o {{hs R (h_dec D) {ec} F {pl} vnone * {rq} * mask a_{tag.name} M1{back}}}.")
         self.rules.append(
             f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
             f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"
@@ -1981,14 +1983,20 @@ class _Compiler:
         divisor as a pexp over the snapshot."""
         tag, pred = self.cst_ast[c]
         pcx = _Ctx(self, tag, [], snapshot=True)
-        out = [(self.division_site(tag, "", "", d, f"constraint {self.model.csts[c][1]}"), self.pexp(d, pcx))
-               for d in self.own_divisors(pred)]
-        # last, when the target's task pre-conditions divide (the decision's search evaluates them):
-        # (None, their divisions), for division_decisions to record the one that is 0
+        return [(self.division_site(tag, "", "", d, f"constraint {self.model.csts[c][1]}"), self.pexp(d, pcx))
+                for d in self.own_divisors(pred)]
+
+    def pre_division_premise(self, tag: a.Agent, snapshot: str) -> tuple[str, str]:
+        """The premise a decision on a constraint sent to ``tag`` adds when ``tag``'s task
+        pre-conditions divide (:meth:`pre_divisions`), and the error context it leaves: a decision
+        that finds no task puts the first of those divisions whose divisor is 0 on ``snapshot`` in
+        the request's error context (framework: ``dec_zero``, ``ec_opt``), the located reason when
+        the request then fails. ("", "EC") when they do not divide."""
         pres = self.pre_divisions(tag)
-        if pres:
-            out.append((None, self._list([f"(vpair (vpexp {d}) (vsite {w}))" for w, d in pres])))
-        return out
+        if not pres:
+            return "", "EC"
+        divs = self._list([f"(vpair (vpexp {d}) (vsite {w}))" for w, d in pres])
+        return f" -o !dec_zero D {snapshot} {divs} O -o !ec_opt O EC EC1", "EC1"
 
     def pre_divisions(self, ag: a.Agent) -> list[tuple[str, str]]:
         """The divisions of ``ag``'s task pre-conditions that the decision's search evaluates (those
@@ -2020,9 +2028,6 @@ class _Compiler:
         be decided), the final check gives the verdict false (the constraint is not established),
         and a held ensure is broken (the ensure re-check rules, timed or not, from ``first`` on,
         copied with the divisor's premise). Each adds the division to the error context."""
-        if where is None:   # (the divisions of the task pre-conditions: constraint_divisions)
-            self.record_pre_divisions(c, first, d, pred_p)
-            return
         n = chr(97 + k)
         ec = f"-o !ec_add (k_local {where}) EC EC1"
         fail = f"rs R s_failure * ecf R EC1 * {rq}"
@@ -2058,29 +2063,6 @@ class _Compiler:
         for x in names:
             self.guards[x] = (tag.name, "hs")
 
-    def record_pre_divisions(self, c: str, first: int, divs: str, pred_p: str) -> None:
-        """The decisions on ``c`` (``select_cN``, ``reselect_cN``, from rule ``first`` on) when
-        its target's task pre-conditions divide (``divs``, :meth:`pre_divisions`): a decision that
-        finds no task puts the first of those divisions whose divisor is 0 on its snapshot in the
-        request's error context (framework: ``dec_zero``), the located reason when the request
-        then fails. A rule of another shape is left as it is (it records nothing)."""
-        if "ec_opt" not in self.__dict__:
-            self.ec_opt = True
-            self.out.append("ec_opt : val -> val -> val -> type.\n"
-                            "eco_none : ec_opt vnone EC EC.\n"
-                            "eco_some : ec_opt (vsome (vsite W)) EC EC1 <- ec_add (k_local W) EC EC1.")
-        head = f"!decide_k K {pred_p} "
-        for i in range(first, len(self.rules)):
-            rule = self.rules[i]
-            if rule.split(" : ", 1)[0] not in (f"select_{c}", f"reselect_{c}"):
-                continue
-            at, end = rule.find(head), rule.find(" F MT D -o ")
-            if at < 0 or end < at or rule.count("(h_dec D) EC F ") != 1 or " EC1 " in rule:
-                continue
-            snap = rule[at + len(head):end]
-            self.rules[i] = (rule[:end] + f" F MT D -o !dec_zero D {snap} {divs} O -o !ec_opt O EC EC1"
-                             + rule[end + len(" F MT D"):]).replace("(h_dec D) EC F ", "(h_dec D) EC1 F ")
-
     def logic_select(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap_w: str, snap: str,
                      wl: str, pred_p: str) -> None:
         """The decision on ``c`` when the target's task pre-conditions call the functional layer
@@ -2105,11 +2087,12 @@ class _Compiler:
             got = f"(vcons X{i + 1} {got})"
             full = f"(vcons (vpair (vcell {cell}) X{i + 1}) {full})"
         self.guards[f"lselect_{c}"] = self.guards[f"lreselect_{c}"] = (tag.name, "hs")
+        zero, ec = self.pre_division_premise(tag, full)
         self.rules.append(
             f"select_{c} : hs R (h_lq I) EC F Pl W -o lsnap I S -o ctl I m_run cnil {got} -o rstat I go"
             f" -o {rq} -o mask a_{tag.name} M\n"
-            f"  -o !mtasks M MT -o !decide_k K {pred_p} {full} F MT D -o !commit D R M M1 -o !committed D Pl1\n"
-            f"  -o {{hs R (h_dec D) EC F Pl1 W * {rq} * mask a_{tag.name} M1}}.")
+            f"  -o !mtasks M MT -o !decide_k K {pred_p} {full} F MT D{zero} -o !commit D R M M1 -o !committed D Pl1\n"
+            f"  -o {{hs R (h_dec D) {ec} F Pl1 W * {rq} * mask a_{tag.name} M1}}.")
 
     def timed_ensure_rules(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap: str, pred_p: str) -> None:
         """Timed mode: a held ensure of ``c`` is re-checked at its period (``held_arm`` arms it),
