@@ -156,6 +156,18 @@ crash_stop_end_block : act I R T Rc N -o hs R Ph EC F Pl W -o rq R A C J K -o ce
 """
 
 
+#: the rules that join crashes and the logic activation (task pre-conditions that call the
+#: functional layer), added only to a spec compiled with both: a dead request whose decision is
+#: still making its calls fails as in the other phases (``unavailable``), the activation gone
+CRASH_LOGIC_TEXT = """
+unavailable_lq : hs R (h_lq I) EC F Pl _ -o lsnap I _ -o ctl I m_run _ _ -o rstat I _ -o rq R A C J K -o cep A E
+               -o !ep_dead F E -o rs R _ -o mask A M -o !mrm M Pl M1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1}.
+unavailable_lq_call : hs R (h_lq I) EC F Pl _ -o lsnap I _ -o ctl I (m_call D _) _ _ -o rstat I _ -o rq R A C J K
+               -o cep A E -o !ep_dead F E -o rs R _ -o mask A M -o !mrm M Pl M1
+               -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1 * orphan D}.
+"""
+
 #: the fairness group of the steps of time (the tick, wakes, re-checks that find nothing to do)
 TIME_GROUP = "the clock"
 
@@ -485,6 +497,7 @@ class _Compiler:
         self.crashes = crashes if crashes else None
         self.crash_agents: set[str] = set(crashes.agents) if crashes else set()
         self.checker_sites: set[str] = set()      # calls hoisted in a recipe's pre-condition check
+        self.logic_sites: set[str] = set()        # sites of the logic activation (task pre-conditions that call)
         self.start_sites: set[str] = set()        # sites of the initialisers run at start
         # a constraint sent with another where clause than its first: a variant constant of its
         # own (the same identity number: the same constraint for the error context)
@@ -1544,6 +1557,8 @@ class _Compiler:
         top = 2 * cr.bound
         out = ["\n% crashes (opt-in): the rules, epochs, the crash plan (docs/semantics.md, Crashes)",
                CRASH_RULES_TEXT.strip()]
+        if self.logic_pres:
+            out.append(CRASH_LOGIC_TEXT.strip())
         for k in range(top + 1):
             self.model.epochs[f"t_ep{k}"] = k
             out.append(f"t_ep{k} : task.")
@@ -1589,7 +1604,8 @@ class _Compiler:
             if c is not None:
                 site = self.model.sites[c]
                 agent = site.agent
-                how = "chk" if site.kind == "pre" else "chkcall" if site.const in self.checker_sites else "act"
+                how = ("chk" if site.kind == "pre" else "chkcall" if site.const in self.checker_sites
+                       else ("hs" if "hs R (h_lq I)" in rule else "lq") if site.const in self.logic_sites else "act")
             elif name in self.guards:
                 agent, how = self.guards[name]
             else:
@@ -1602,6 +1618,9 @@ class _Compiler:
                 fl = "F"
             elif how == "ask":             # the activation Ik of the calling context, of request Rk1
                 prem.append("hs Rk1 Phg ECg Fg Plg Wg")
+                fl = "Fg"
+            elif how == "lq":              # the logic activation I, deciding on request Rg
+                prem.append("hs Rg (h_lq I) ECg Fg Plg Wg")
                 fl = "Fg"
             elif how == "chkcall":
                 prem += ["chk I Rg Rcg Ng", "hs Rg Phg ECg Fg Plg Wg"]
@@ -1733,11 +1752,6 @@ class _Compiler:
         value is the condition evaluated, calls and all, by the logic activation that runs before
         each decision on a constraint sent to the agent (:meth:`logic_activation`). Nothing
         entails it (post-conditions call no function), so a false one is never sub-goaled."""
-        if self.crashes:
-            raise UnsupportedError(
-                "a function call in a task pre-condition is not combined with crashes yet "
-                "(docs/semantics.md, Known gaps): check the crashes on a spec without it",
-                next(a.calls(q)).pos)
         got = self.logic_pres.setdefault(ag.name, [])
         cell = f"lp_{ag.name}_{len(got) + 1}"
         got.append((cell, q, t))
@@ -1767,6 +1781,7 @@ class _Compiler:
             self.logic_calls(q, cx, calls, divs, text)
             cond = self.pexp(q, cx)
             s = self.site("lpre", tag, t.name, "", q.pos, text)
+            self.logic_sites.add(s)
             E = cx.envpat()
             self.rules.append(
                 f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o lsnap I S -o !peval S {E} vnil {cond} X"
@@ -1816,6 +1831,7 @@ class _Compiler:
             self.model.fn_params[fc] = list(self.checked.fn_sigs.get((owner, e.name), (None, []))[1] or [])
             self.pending_fns[fc] = (owner, e.name, result_ty)
             s = self.site("call", cx.agent, cx.task, "", e.pos, format_expr(e), function=e.qualified)
+            self.logic_sites.add(s)
             self.model.call_sites.setdefault(fc, []).append(e.pos)
             E = cx.envpat()
             vals = [f"A{i + 1}" for i in range(len(args))]

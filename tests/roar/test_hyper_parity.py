@@ -19,6 +19,8 @@ its meaning in its header; what is still refused is tests/roar/unsupported/ (tes
 
 from __future__ import annotations
 
+import re
+
 from collections import deque
 from fractions import Fraction
 from pathlib import Path
@@ -365,9 +367,15 @@ def test_a_failed_call_makes_its_conjunct_false_and_the_others_are_subgoaled():
     assert ("a", "go") in m.candidates[m.request_cst]
 
 
-def test_pre_condition_calls_and_crashes_are_not_combined_yet():
-    with pytest.raises(UnsupportedError, match="not combined with crashes yet"):
-        compile_spec(load_spec(PRE), GO5, crashes=Crashes(("a",)))
+def test_pre_condition_calls_and_crashes_combine():
+    """(They used to be refused.) With the agent that may crash, the logic activation's rules are
+    guarded by the epoch of the request it decides on; tests/roar/test_time_crashes.py checks a
+    crash during such a decision against a plain search."""
+    m = compile_spec(load_spec(PRE), GO5, crashes=Crashes(("a",)))
+    names = m.program().rule_names
+    assert "unavailable_lq" in names and "unavailable_lq_call" in names
+    lpre = [x.group(0) for x in re.finditer(r"^st\d+_lpre : .*?\}\.", m.spec_text, re.S | re.M)]
+    assert lpre and all("hs Rg (h_lq I)" in x and "ep_cur" in x for x in lpre)
 
 
 # ------------------------------------------------------------------ request where values

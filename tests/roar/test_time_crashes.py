@@ -122,3 +122,50 @@ def test_a_timed_crash_counterexample_replays(tmp_path, roar_cli):
     back = replay_trace(path, SPEC)
     assert back.confirmed is True and back.compiled.crashes == Crashes(("lamp",), 1) and back.compiled.timing
     assert any(e["text"] == "lamp crashed" for s in back.steps for e in s["events"])
+
+
+# ------------------------------------------------------------------ crashes and the logic activation
+
+
+def test_a_crash_during_a_decision_through_the_functional_layer():
+    """The mover's task pre-conditions call the functional layer: its decisions go through a logic
+    activation (``h_lq``). A crash at any moment of it fails the dead request
+    (``unavailable_lq``, ``unavailable_lq_call`` while a call is pending) and leaves nothing
+    behind. Oracle: a plain breadth-first search over the engine; in every state with no step no
+    handler, logic activation or pending call is left, the mover's mask is empty, and a failed
+    boss request carries the unavailability."""
+    spec = DATA / "crash_logic.roar"
+    request = "boss::done == true"
+    model = compile_spec(load_spec(spec), request, functional="abstract", crashes=Crashes(("mover",), 1))
+    program = model.program()
+    start = program.start_context(next(d for d in program.sig.directives
+                                       if type(d).__name__ == "ExecDirective").start)
+    seen = {canonical_key(start)}
+    level, ends, rules = [start], [], set()
+    while level:
+        nxt_level = []
+        for ctx in level:
+            steps = list(program.steps(ctx))
+            if not steps:
+                ends.append(ctx)
+            for c in steps:
+                nxt, step = program.successor(ctx, c)
+                rules.add(step.rule)
+                k = canonical_key(nxt)
+                if k not in seen:
+                    seen.add(k)
+                    nxt_level.append(nxt)
+        level = nxt_level
+    assert {"unavailable_lq", "unavailable_lq_call"} <= rules   # a crash reached both phases
+    outcomes = set()
+    for ctx in ends:
+        for fam in ("hs", "lsnap", "ctl", "pending"):
+            assert _facts(ctx, fam) == [], fam
+        assert [head_name(f.args[1]) for f in _facts(ctx, "mask")] == ["vnil", "vnil"]
+        top = [f.args[0] for f in _facts(ctx, "rq") if head_name(f.args[3]) == "itop"]
+        outcomes |= {head_name(f.args[1]) for f in _facts(ctx, "rs") if f.args[0] in top}
+    assert outcomes == {"s_success", "s_failure"}
+    ex = load(spec).explore(request, properties=["deadlock", "mission-failure"], crash=["mover"])
+    assert ex.states == len(seen)
+    assert ex.verdicts["deadlock"].status == "holds"
+    assert ex.verdicts["mission-failure"].status == "violated"
