@@ -626,7 +626,11 @@ class _Compiler:
                 self.prepare(ch, cx)
 
     def hoist_task_run(self, owner: a.Agent, var: str, task: str, cx: _Ctx, pos: Pos) -> None:
-        """Reading ``var`` runs its task first (4.2: an initialiser naming a task), as a task-run request."""
+        """Reading ``var`` runs its task first (4.2: an initialiser naming a task), as a task-run request,
+        unless the registry abstracts it (:meth:`hoist_abstract_read`)."""
+        if self.abstract_read(owner, var) is not None:
+            self.hoist_abstract_read(owner, var, cx, pos)
+            return
         tc = self.task_c(owner.name, task)
         run_c = self.task_run_cst(owner, task)
         s = self.site("run-task", cx.agent, cx.task, cx.recipe, pos, f"read {owner.name}::{var} (runs {task})")
@@ -638,6 +642,35 @@ class _Compiler:
             f"      * hs r (h_tasks (vcons (vtsk {tc}) vnil)) vnil {failed} vnil vnone{stamp_o}}}.")
         cx.hoisted.append(s)
         self.sent_runs.setdefault((cx.agent.name, cx.task, cx.recipe), set()).add(run_c)
+
+    def abstract_read(self, owner: a.Agent, var: str):
+        """The registry entry ``agent::var`` that abstracts the task of a task-initialised variable
+        for exploration (docs/spec-language.md, the functional layer), or None: only in the
+        abstract functional layer (a run with Python callables runs the task)."""
+        if self.functional != "abstract" or self.registry is None:
+            return None
+        prim = self.registry.lookup(var, owner.name)
+        return prim if prim is not None and prim.name == f"{owner.name}::{var}" else None
+
+    def hoist_abstract_read(self, owner: a.Agent, var: str, cx: _Ctx, pos: Pos) -> None:
+        """A read of a task-initialised variable that the registry abstracts: instead of running
+        the task, one step of the functional layer whose outcomes (the entry's) write the
+        variable (``writes``), or fail the read as a failed primitive fails its statement."""
+        fc = f"fv_{owner.name}_{var}"
+        vty = self.checked.var_types.get((owner.name, var))
+        self.model.functions[fc] = (owner.name, var)
+        self.model.fn_types[fc] = vty
+        self.model.fn_params[fc] = []
+        self.pending_fns[fc] = (owner.name, var, vty)
+        s = self.site("call", cx.agent, cx.task, cx.recipe, pos, f"read {owner.name}::{var} (abstracted)",
+                      function=f"{owner.name}::{var}")
+        self.model.call_sites.setdefault(fc, []).append(pos)
+        self.rules.append(
+            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go\n"
+            f"  -o {{Exists d. pending {fc} vnil d * ctl I (m_call d {s}) C E * rstat I go}}.")
+        cx.hoisted.append(s)
+        cx.env.insert(0, "")   # (its result is pushed and popped with the statement's; the read is the cell's)
+        cx.pushed += 1
 
     def hoist_call(self, e: a.Call, cx: _Ctx) -> None:
         found = self.spec.resolve_function(cx.agent, e)

@@ -148,3 +148,37 @@ def test_demo_loco_needs_no_binding_and_mana_nav_does():
         reg.register(name, fn)
     binding = reg.resolve(spec)
     assert "planner::astar" in binding.functions and "locomotion::follow" in binding.functions
+
+
+def test_a_registry_entry_abstracts_a_task_initialised_variable_in_exploration():
+    """``loco::pos`` is task-initialised (reading it runs locate). Its registry entry abstracts the
+    read for exploration: one step of the functional layer whose outcomes write pos or fail the
+    read, and the task does not run. With Python callables (a run), the read runs the task."""
+    from roar_formal.roar.compile import compile_spec
+    from roar_formal.roar.run import run_model
+    from roar_formal.roar.spec import load_spec
+    from pathlib import Path
+
+    from roar_formal.roar.functional import load_registry
+    data = Path(__file__).parent / "data"
+    spec = load_spec(data / "abstract_read.roar")
+    reg = load_registry(data / "abstract_read.py")
+    abstract = compile_spec(spec, "loco::arrived == true", registry=reg, functional="abstract")
+    assert "fv_loco_pos" in abstract.functions and "crun_loco_locate" not in abstract.csts
+    seen = set()
+    for seed in range(12):
+        r = run_model(abstract, seed=seed, max_steps=400)
+        texts = [e.text for e in r.events]
+        assert not any("recipe odometry" in t for t in texts) and r.final["loco::tries"] == 0
+        if r.outcome == "success":
+            seen.add("at_goal")
+            assert r.final["loco::pos"] == 5
+        if any("local failure" in t and "assert(pos == 5)" in t for t in texts):
+            seen.add("short")     # pos written 3: the recipe's assert fails
+        if any("local failure" in t and "read loco::pos (abstracted)" in t for t in texts):
+            seen.add("lost")      # the read itself failed
+    assert seen == {"at_goal", "short", "lost"}
+    ran = run_model(compile_spec(spec, "loco::arrived == true"), seed=0)   # (no registry: the task runs)
+    assert ran.outcome == "success" and ran.final["loco::tries"] == 1
+    assert "crun_loco_locate" in compile_spec(spec, "loco::arrived == true", registry=reg,
+                                              functional="python").csts
