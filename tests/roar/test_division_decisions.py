@@ -12,17 +12,14 @@ spec has a twin whose divisor is not 0, which behaves as before (docs/semantics.
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
 from roar_formal.roar.compile import compile_spec
-from roar_formal.roar.functional import load_registry
-from roar_formal.roar.run import run_model
 from roar_formal.roar.spec import load_spec
 from roar_formal.testing import load
 
-DATA = Path(__file__).parent / "data"
+from .division import DATA, check_explorer, check_run, check_twin, run_spec, twin
 
 # spec, request, the error context of the run (the located reason last but for the ensure's breach),
 # the twin's edits (old, new), what the twin's run ends with
@@ -56,59 +53,27 @@ CASES = {
 }
 
 
-def _run(path: Path, request: str):
-    py = path.with_suffix(".py")
-    reg = (lambda: load_registry(py)) if py.exists() else (lambda: None)
-    model = compile_spec(load_spec(path), request, registry=reg(), functional="python")
-    return run_model(model, seed=0, max_steps=500, registry=reg())
-
-
-def _twin(name: str, edits, tmp_path: Path) -> Path:
-    text = (DATA / name).read_text()
-    for old, new in edits:
-        assert old in text
-        text = text.replace(old, new)
-    twin = tmp_path / name
-    twin.write_text(text)
-    py = (DATA / name).with_suffix(".py")
-    if py.exists():
-        (tmp_path / py.name).write_text(py.read_text())
-    return twin
-
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_run_ends_with_the_located_division(case):
-    name, request, ec, _edits, _values = CASES[case]
-    res = _run(DATA / name, request)
-    assert res.quiescent and res.outcome == "failure"
-    assert res.error_context == ec
+    check_run(CASES[case])
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_explorer_finds_no_deadlock(case):
-    name, request, _ec, _edits, _values = CASES[case]
-    ex = load(DATA / name).explore(request, properties=["deadlock", "mission-failure"])
-    assert ex.verdicts["deadlock"].status == "holds"   # a rule that never fired: a deadlock (the ensure: no breach)
-    assert ex.verdicts["mission-failure"].status == "violated"  # the located failure
+    check_explorer(CASES[case])
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_twin_with_a_nonzero_divisor_behaves_as_before(case, tmp_path):
-    name, request, _ec, edits, values = CASES[case]
-    twin = _twin(name, edits, tmp_path)
-    res = _run(twin, request)
-    assert res.outcome == "success" and res.error_context == []
-    assert {k: res.final[k] for k in values} == values
-    ex = load(twin).explore(request, properties=["deadlock", "mission-failure"])
-    assert ex.verdicts["deadlock"].status == "holds"
-    assert ex.verdicts["mission-failure"].status == "holds"
+    check_twin(CASES[case], tmp_path)
 
 
 def test_a_division_in_the_condition_of_a_logic_pre_condition(tmp_path):
     """The division may be in the pre-condition's own evaluation (its site ``stN_lpre``), not in a
     call's arguments (the call site): the pre-condition is false there too."""
-    path = _twin("div_logic_pre.roar", [("ready(12 / d) == true", "ready(2) == (12 / d > 1)")], tmp_path)
-    res = _run(path, "a::x == 1")
+    path = twin("div_logic_pre.roar", [("ready(12 / d) == true", "ready(2) == (12 / d > 1)")], tmp_path)
+    res = run_spec(path, "a::x == 1")
     assert res.outcome == "failure"
     assert res.error_context == ["local failure: a.go. at 13:34: division by zero: a::d is 0 in pre-condition "
                                  "of task go: ready(2) == (12 / a::d > 1)"]

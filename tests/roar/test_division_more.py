@@ -21,12 +21,11 @@ from pathlib import Path
 import pytest
 
 from roar_formal.roar.compile import compile_spec
-from roar_formal.roar.functional import load_registry
 from roar_formal.roar.run import run_model
 from roar_formal.roar.spec import load_spec
 from roar_formal.testing import load
 
-DATA = Path(__file__).parent / "data"
+from .division import DATA, check_explorer, check_run, check_twin, run_spec, twin
 
 # spec, request, the error context of the run, the twin's edits (old, new), what the twin's run ends with
 CASES = {
@@ -53,69 +52,35 @@ CASES = {
 ALT = DATA / "div_alternative.roar"   # tracker's alternative recipe: pre-condition 100 / cams > 10
 
 
-def _run(path: Path, request: str, seed: int = 0):
-    py = path.with_suffix(".py")
-    reg = (lambda: load_registry(py)) if py.exists() else (lambda: None)
-    model = compile_spec(load_spec(path), request, registry=reg(), functional="python")
-    return run_model(model, seed=seed, max_steps=500, registry=reg())
-
-
-def _twin(name: str, edits, tmp_path: Path) -> Path:
-    text = (DATA / name).read_text()
-    for old, new in edits:
-        assert old in text
-        text = text.replace(old, new)
-    twin = tmp_path / name
-    twin.write_text(text)
-    py = (DATA / name).with_suffix(".py")
-    if py.exists():
-        (tmp_path / py.name).write_text(py.read_text())
-    return twin
-
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_run_ends_with_the_located_division(case):
-    name, request, ec, _edits, _values = CASES[case]
-    res = _run(DATA / name, request)
-    assert res.quiescent and res.outcome == "failure"
-    assert res.error_context == ec
+    check_run(CASES[case])
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_explorer_finds_no_deadlock(case):
-    name, request, _ec, _edits, _values = CASES[case]
-    ex = load(DATA / name).explore(request, properties=["deadlock", "mission-failure"])
-    assert ex.verdicts["deadlock"].status == "holds"   # it was "violated": a rule that never fired
-    assert ex.verdicts["mission-failure"].status == "violated"  # the located failure
+    check_explorer(CASES[case])
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_twin_with_a_nonzero_divisor_behaves_as_before(case, tmp_path):
-    name, request, _ec, edits, values = CASES[case]
-    twin = _twin(name, edits, tmp_path)
-    res = _run(twin, request)
-    assert res.outcome == "success" and res.error_context == []
-    assert {k: res.final[k] for k in values} == values
-    # (a statement's call with a division in its arguments had a rule of the statement that
-    # could fail it whatever the divisor: the explorer would find that failure)
-    ex = load(twin).explore(request, properties=["deadlock", "mission-failure"])
-    assert ex.verdicts["deadlock"].status == "holds"
-    assert ex.verdicts["mission-failure"].status == "holds"
+    check_twin(CASES[case], tmp_path)
 
 
 def test_a_call_made_by_a_statement_is_not_made():
-    res = _run(DATA / "div_call_stmt.roar", "a::done == true")
+    res = run_spec(DATA / "div_call_stmt.roar", "a::done == true")
     assert not any(e.kind == "primitive" for e in res.events), [e.text for e in res.events]
     assert res.final["a::x"] == 0   # nothing was written
 
 
 def test_a_task_whose_pre_condition_cannot_be_evaluated_leaves_the_decision_to_another(tmp_path):
     """The decision comes: a task the search can use instead is chosen (no division recorded)."""
-    path = _twin("div_task_pre.roar", [(
+    path = twin("div_task_pre.roar", [(
         "  }\n}\n",
         "    slow = task {\n      pre = { }\n      post = { {x == 1} }\n"
         "      recipes = { r = recipe { body = { set x 1; } } }\n    }\n  }\n}\n")], tmp_path)
-    res = _run(path, "a::x == 1")
+    res = run_spec(path, "a::x == 1")
     assert res.outcome == "success" and res.error_context == []
     assert "R0: tasks slow" in [e.text for e in res.events]
     ex = load(path).explore("a::x == 1", properties=["deadlock", "mission-failure"])
@@ -127,20 +92,20 @@ def test_a_sub_goal_whose_pre_condition_cannot_be_evaluated(tmp_path):
     """The division is in the pre-condition of a sub-goal's task (prep, which establishes go's
     pre-condition): prep is not usable, so neither is go, and the request fails with prep's
     division located."""
-    path = _twin("div_task_pre.roar", [
+    path = twin("div_task_pre.roar", [
         ("{ int x; }", "{ int x; bool ready; }"),
         ("pre = { {10 / d > 1} }", "pre = { {ready == true} }"),
         ("  }\n}\n",
          "    prep = task {\n      pre = { {10 / d > 1} }\n      post = { {ready == true} }\n"
          "      recipes = { r = recipe { body = { set ready true; } } }\n    }\n  }\n}\n")], tmp_path)
-    res = _run(path, "a::x == 1")
+    res = run_spec(path, "a::x == 1")
     assert res.quiescent and res.outcome == "failure"
     assert res.error_context == ["local failure: a.prep. at 19:21: division by zero: d is 0 in pre-condition "
                                  "of task prep: 10 / d > 1"]
     assert load(path).explore("a::x == 1", properties=["deadlock"]).verdicts["deadlock"].status == "holds"
     fixed = tmp_path / "fixed.roar"   # (the twin: d = 2)
     fixed.write_text(path.read_text().replace("int d = 0;", "int d = 2;"))
-    res = _run(fixed, "a::x == 1")
+    res = run_spec(fixed, "a::x == 1")
     assert res.outcome == "success" and res.final["a::ready"] is True and res.final["a::x"] == 1
     assert "R0: tasks prep then go" in [e.text for e in res.events]
 

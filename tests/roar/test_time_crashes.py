@@ -37,14 +37,13 @@ def _facts(ctx, fam: str) -> list:
     return list(bag.items) if bag else []
 
 
-def _oracle(crash: str):
-    model = compile_spec(load_spec(SPEC), REQUEST, functional="abstract", crashes=Crashes((crash,), 1),
-                         time="timed")
+def _search(model) -> tuple[int, list, set]:
+    """Breadth-first over the engine: the number of states, the states with no step, the rules taken."""
     program = model.program()
     start = program.start_context(next(d for d in program.sig.directives
                                        if type(d).__name__ == "ExecDirective").start)
     seen = {canonical_key(start)}
-    level, ends = [start], []
+    level, ends, rules = [start], [], set()
     while level:
         nxt_level = []
         for ctx in level:
@@ -53,12 +52,20 @@ def _oracle(crash: str):
                 ends.append(ctx)
             for c in steps:
                 nxt, step = program.successor(ctx, c)
+                rules.add(step.rule)
                 k = canonical_key(nxt)
                 if k not in seen:
                     seen.add(k)
                     nxt_level.append(nxt)
         level = nxt_level
-    return len(seen), ends
+    return len(seen), ends, rules
+
+
+def _oracle(crash: str):
+    model = compile_spec(load_spec(SPEC), REQUEST, functional="abstract", crashes=Crashes((crash,), 1),
+                         time="timed")
+    n, ends, _rules = _search(model)
+    return n, ends
 
 
 @pytest.mark.parametrize("crash", ["lamp", "door"])
@@ -137,25 +144,7 @@ def test_a_crash_during_a_decision_through_the_functional_layer():
     spec = DATA / "crash_logic.roar"
     request = "boss::done == true"
     model = compile_spec(load_spec(spec), request, functional="abstract", crashes=Crashes(("mover",), 1))
-    program = model.program()
-    start = program.start_context(next(d for d in program.sig.directives
-                                       if type(d).__name__ == "ExecDirective").start)
-    seen = {canonical_key(start)}
-    level, ends, rules = [start], [], set()
-    while level:
-        nxt_level = []
-        for ctx in level:
-            steps = list(program.steps(ctx))
-            if not steps:
-                ends.append(ctx)
-            for c in steps:
-                nxt, step = program.successor(ctx, c)
-                rules.add(step.rule)
-                k = canonical_key(nxt)
-                if k not in seen:
-                    seen.add(k)
-                    nxt_level.append(nxt)
-        level = nxt_level
+    n, ends, rules = _search(model)
     assert {"unavailable_lq", "unavailable_lq_call"} <= rules   # a crash reached both phases
     outcomes = set()
     for ctx in ends:
@@ -166,6 +155,6 @@ def test_a_crash_during_a_decision_through_the_functional_layer():
         outcomes |= {head_name(f.args[1]) for f in _facts(ctx, "rs") if f.args[0] in top}
     assert outcomes == {"s_success", "s_failure"}
     ex = load(spec).explore(request, properties=["deadlock", "mission-failure"], crash=["mover"])
-    assert ex.states == len(seen)
+    assert ex.states == n
     assert ex.verdicts["deadlock"].status == "holds"
     assert ex.verdicts["mission-failure"].status == "violated"
