@@ -192,7 +192,6 @@ tnext : number -> number -> type.            % compiled: the next tick of the cy
 tafter : number -> number -> number -> type. % compiled: tafter K T D: K ticks after tick T is tick D
 eperiod : cst -> number -> type.             % compiled: the period (ticks) of an ensured constraint
 m_sleep : number -> mode.                    % a wait or an assert sleeps until tick D
-spoll : site -> number -> site.              % site S polled again, with K polls left before its timeout
 h_heldt : number -> phase.                   % a held ensure, re-checked at tick D
 tm_ins : number -> val -> val -> type.
 tmi_at : bool -> number -> number -> val -> val -> type.
@@ -494,6 +493,7 @@ class _Compiler:
         self.timeouts: dict[str, str] = {}        # wait site -> its timeout site
         self.time_steps: set[str] = set()          # compiled rules that are steps of time (TIME_GROUP)
         self.division_sites: Optional[list] = None
+        self.timed_assert_code: Optional[list] = None   # a timed assert's code: it sleeps before its calls
         self.crashes = crashes if crashes else None
         self.crash_agents: set[str] = set(crashes.agents) if crashes else set()
         self.checker_sites: set[str] = set()      # calls hoisted in a recipe's pre-condition check
@@ -973,7 +973,8 @@ class _Compiler:
             env.insert(0, st.name)
         if isinstance(st, a.Ensure) and st.handle:
             env.insert(0, st.handle)
-        return cx.hoisted + [s]
+        code, self.timed_assert_code = self.timed_assert_code or cx.hoisted + [s], None
+        return code
 
     def note_where_hyps(self, cst: str, cells: list[str], values: list[a.Expr]) -> None:
         """Record the equalities ``cell == literal`` a send of ``cst`` establishes by its where
@@ -1045,6 +1046,8 @@ class _Compiler:
                             where)
         self.clock = True
         self.model.tick_ms, self.model.cycle = self.tick_ms, self.cycle
+        # (declared before the recipes' code, which a timed assert's polled site is part of)
+        self.out.append("spoll : site -> number -> site.                % site S polled again, with K polls left before its timeout")
 
     def ticks_of(self, st) -> Optional[int]:
         """The period of a statement in ticks (timed mode, with a clock), or None."""
@@ -1078,9 +1081,12 @@ class _Compiler:
                 out = f"(ccons {h} {out})"
             return out
         if kind == "assert":
+            # it sleeps first, then makes its calls and is evaluated, once (its code is
+            # s, the hoisted calls, the polled site: see stmt)
             polled = f"(spoll {s} 0)"
-            sp, so = self.sleep(ticks, code(polled), "")
-            self.rules.append(f"{s}_sleep : ctl I m_run (ccons {s} C) {E} -o rstat I go{sp}\n  -o {{{so}}}.")
+            sp, so = self.sleep(ticks, "C", "")
+            self.rules.append(f"{s}_sleep : ctl I m_run (ccons {s} C) E -o rstat I go{sp}\n  -o {{{so}}}.")
+            self.timed_assert_code = [s] + cx.hoisted + [polled]
             self.rules.append(f"{s} : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
                               f" -o !peval vnil {E} vnil {cond} (vbool tt)\n  -o {{ctl I m_run C E * rstat I go{outs}}}.")
             self.rules.append(f"{s}_false : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"

@@ -390,6 +390,39 @@ lamp = ability {
     assert not o.deadlocks()
 
 
+def test_a_timed_assert_makes_its_calls_once_after_its_sleep(tmp_path):
+    """An assert with a period that calls the functional layer sleeps first, then makes its call
+    and is evaluated at the wake, once: the call is not made before the sleep as well (its answer
+    was thrown away, and a fault on it had no effect)."""
+    spec = tmp_path / "cam.roar"
+    spec.write_text("""
+cam = ability {
+  context = { { } { bool seen = false; } { } }
+  export = { { } { bool detect(); } { } }
+  tasks = {
+    look = task {
+      post = { {seen == true} }
+      recipes = { r = recipe { body = { assert(detect(), 50); set seen true; } } }
+    }
+  }
+}
+""", encoding="utf-8")
+    o = Oracle(spec, "cam::seen == true", "timed")
+    # in every explored state where the call is made, the activation has slept already: the code
+    # it runs is the call, then the polled assert (never the sleep still to come)
+    for _src, _dst, rule, consumed, _produced in o.edges:
+        if rule.endswith("_call"):
+            code = next(f for f in consumed if f.startswith("ctl "))
+            assert "(spoll pp" in code and "_assert_sleep" not in code, code
+    from roar_formal.testing.api import load
+    r = load(spec).run("cam::seen == true", time="timed", faults=["detect:1"])
+    texts = [e.text for e in r.events]
+    calls = [t for t in texts if t.startswith("detect()")]
+    assert calls[:2] == ["detect()", "detect() = false"]          # the first call is the one evaluated
+    assert any("local failure" in t and "assert(detect(), 50)" in t for t in texts)
+    assert r.outcome == "success" and len([t for t in calls if t == "detect()"]) == 2   # one per try
+
+
 # ------------------------------------------------------------------ replay: the header records the options
 
 
