@@ -42,7 +42,7 @@ from .checks import CheckedSpec, typed_request
 from .spec import checked_spec
 from ..clf.program import Program
 from .framework import extend_framework, extend_signature, framework_text, with_framework
-from .functional import DEFAULT_OUTCOMES, BindingError, Outcome, Registry
+from .functional import DEFAULT_OUTCOMES, Outcome, Registry
 from .incompatible import incompatible_tasks
 from .pretty import format_expr, format_stmt
 
@@ -2450,12 +2450,11 @@ def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[R
     compiled without faults or clock, to the byte.
     """
     checked = checked_spec(spec)
-    if registry is not None and functional == "python":
-        registry.resolve(checked.spec)   # every call bound, with the right number of arguments (located)
-    elif registry is not None:
-        unused = registry.assumption_errors(checked.spec)
-        if unused:
-            raise BindingError(unused)
+    if registry is not None:
+        # every call bound, with the right number of arguments (located), in exploration as in a
+        # run: a spec with a functional layer whose module leaves a function out would otherwise be
+        # explored with made-up outcomes (a number function answering 0), a check of another spec
+        registry.resolve(checked.spec)
     req, typed = typed_request(checked, request)
     if req.target() is None:
         raise RoarError("the request must name exactly one agent", req.pos)

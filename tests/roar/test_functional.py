@@ -182,3 +182,31 @@ def test_a_registry_entry_abstracts_a_task_initialised_variable_in_exploration()
     assert ran.outcome == "success" and ran.final["loco::tries"] == 1
     assert "crun_loco_locate" in compile_spec(spec, "loco::arrived == true", registry=reg,
                                               functional="python").csts
+
+
+def test_exploration_refuses_a_module_that_leaves_a_function_unbound(tmp_path):
+    """A spec with a functional layer is explored with its module's bindings: a called function the
+    module leaves out is refused at the call (as a run refuses it), not explored with made-up
+    outcomes; so is a callable with the wrong number of arguments."""
+    from roar_formal.roar.compile import compile_spec
+    spec = tmp_path / "g.roar"
+    spec.write_text("""
+g = ability {
+  context = { { } { bool held = false; } { } }
+  export = { { } { int force(); bool close(int); } { } }
+  tasks = {
+    grasp = task {
+      post = { {held == true} }
+      recipes = { r = recipe { body = { let f force(); assert(close(f)); set held true; } } }
+    }
+  }
+}
+""", encoding="utf-8")
+    reg = Registry()
+    reg.register("close", lambda width: True)
+    with pytest.raises(BindingError, match="function 'force' .* has no binding") as err:
+        compile_spec(load_spec(spec), "g::held == true", registry=reg, functional="abstract")
+    assert err.value.pos is not None and err.value.pos.line == 8
+    reg.register("force", lambda a, b: 3)
+    with pytest.raises(BindingError, match="takes 2 arguments"):
+        compile_spec(load_spec(spec), "g::held == true", registry=reg, functional="abstract")
