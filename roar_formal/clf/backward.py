@@ -14,7 +14,6 @@ first: ``C o- A o- B`` solves A, then B.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from typing import Callable, Iterator, Optional
 
@@ -540,22 +539,7 @@ def prove_premise(bw: Backward, ctx: Context, tpl, p, b: list, trail: list, cons
     if bw.depth == 0 and type(pat) is Root and type(pat.head) is not Meta:
         memo = _premise_memo(bw.program)
     if memo is not None:
-        slots = p.__dict__.get("_slots")
-        if slots is None:
-            slots = p._slots = _slots_of(pat)
-        pers = ctx.pers
-        fams = bw.program.premise_families(pat.head)
-        if len(fams) == 1:
-            bag = ctx.index.get(pat.head)
-            facts = tuple([t for t in bag.items if t in pers]) if bag else ()
-        else:
-            facts = []
-            for f in fams:
-                bag = ctx.index.get(f)
-                if bag:
-                    facts.extend([t for t in bag.items if t in pers])
-            facts = tuple(facts)
-        key = (p, tuple([b[i] for i in slots]), facts)
+        key = premise_key(bw, ctx, p, b)
         hit = memo.get(key)
         if hit is not None:
             found, used_ids = hit
@@ -650,20 +634,53 @@ def _prove_with_context(bw: Backward, ctx: Context, p, b: list, trail: list, con
 _PREMISE_MEMO_MAX = 200_000
 
 
-def _next_param_id() -> Optional[int]:
-    """The id the next fresh name or logic variable will get (None if unreadable).
-
-    A memoised answer skips the ids the search would have used, so the fresh names
-    made afterwards (and printed in traces) are numbered as without the memo."""
-    r = repr(terms._param_ids)
-    if r.startswith("count(") and r.endswith(")") and r[6:-1].isdigit():
-        return int(r[6:-1])
-    return None
+#: the id the next fresh name or logic variable will get; skip ids (see terms.py). A memoised
+#: answer skips the ids the search would have used, so the fresh names made afterwards (and
+#: printed in traces) are numbered as without the memo.
+_next_param_id = terms.next_param_id
+_skip_param_ids = terms.skip_param_ids
 
 
-def _skip_param_ids(n: int) -> None:
-    if n:
-        terms._param_ids = itertools.count(_next_param_id() + n)
+def premise_key(bw: Backward, ctx: Context, p, b: list) -> tuple:
+    """The premise memo's key of a persistent premise (an atom of a constant family): the
+    premise, the values of its slots and the persistent facts of the families its proof may
+    read (see :func:`prove_premise`)."""
+    got = p.__dict__.get("_memo_plan")
+    if got is None or got[0] is not bw.program:
+        pat = p.pattern
+        got = p._memo_plan = (bw.program, _slots_of(pat), bw.program.premise_families(pat.head))
+    _prog, slots, fams = got
+    pers = ctx.pers
+    if not pers:
+        facts = ()   # (the common case: a context of linear facts only)
+    elif len(fams) == 1:
+        bag = ctx.index.get(fams[0])
+        facts = tuple([t for t in bag.items if t in pers]) if bag else ()
+    else:
+        acc = []
+        for f in fams:
+            bag = ctx.index.get(f)
+            if bag:
+                acc.extend([t for t in bag.items if t in pers])
+        facts = tuple(acc)
+    return p, tuple([b[i] for i in slots]), facts
+
+
+def memo_answer(bw: Backward, ctx: Context, p, b: list):
+    """:func:`prove_premise`'s memoised answer for a premise, without a generator: ``(found,
+    ids)`` (``found`` the slot values a proof gives, None when there is no proof; ``ids``
+    the fresh ids the search took), or None when the premise is not memoised or not yet
+    answered (the caller then runs :func:`prove_premise`). The matcher's hot path (the
+    explorer proves the same premises in state after state)."""
+    if p.mode != PERS or ctx.open or bw.depth:
+        return None
+    pat = p.pattern
+    if type(pat) is not Root or type(pat.head) is Meta or p.family in BUILTINS:
+        return None
+    memo = bw.program.__dict__.get("_premise_memo") if hasattr(bw.program, "__dict__") else None
+    if not memo:
+        return None
+    return memo.get(premise_key(bw, ctx, p, b))
 
 
 def _premise_memo(program) -> Optional[dict]:

@@ -25,7 +25,8 @@ from typing import Callable, Iterator, Optional
 from .builtins import BUILTINS
 from .context import Context, CtxRule
 from .rules import AFF, LIN, PERS, Template, positive_parts
-from .terms import BVar, Const, EVar, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, zonk, map_bvars, bvar
+from .terms import (BVar, Const, EVar, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, zonk, map_bvars, bvar,
+                    next_param_id, skip_param_ids)
 
 # ------------------------------------------------------------------ matching
 
@@ -251,7 +252,6 @@ def _available(key: tuple, lin: dict, aff: dict, pers: dict, used: dict) -> bool
 
 
 _CONST, _SLOT, _PATTERN = 0, 1, 2
-_LIN_ONLY = (LIN,)
 
 
 def _plans(tpl: Template) -> tuple:
@@ -368,7 +368,11 @@ def first_match(ctx: Context, tpl: Template, b: list, start: int,
 
 def _search(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only, start) -> bool:
     """Extend the current partial match by the remaining context premises; True to stop
-    (``first_only`` and a match was found)."""
+    (``first_only`` and a match was found).
+
+    The last context premise of a rule with no proved premise records its matches in place
+    (no call per match), and a context of linear facts only (a compiled ROAR model's) takes a
+    loop without the modes: the same matches in the same order, for less interpretation."""
     if not left:
         if back:
             return _search_back(0, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
@@ -380,16 +384,62 @@ def _search(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, f
     best, best_bag, n = sel
     modes, _fam, arity, args, _keyed = plan[best]
     lin, aff, pers = ctx.lin, ctx.aff, ctx.pers
-    if not aff and not pers:   # (linear facts only, as in a compiled ROAR model: no other mode to try)
+    lin_only = not aff and not pers
+    if lin_only:   # (linear facts only, as in a compiled ROAR model: no other mode to try)
         if modes[0] != LIN:
             return False
-        modes = _LIN_ONLY
+    leaf = left == 1 and not back   # a match is complete once this premise is matched
     done[best] = True
     items = best_bag.items
     if start > 0 and n > 1 and start % n:
         first = start % n
         items = items[first:] + items[:first]
     stop = False
+    if lin_only:
+        for t in items:
+            targs = t.args
+            if len(targs) != arity:
+                continue
+            # is one more copy of t left, after what this match used? (terms compare by identity)
+            if consumed and lin.get(t, 0) <= consumed.count((LIN, t)):
+                continue
+            mark = len(trail)
+            ok = True
+            for j, kind, v in args:
+                a = targs[j]
+                if kind == _SLOT:
+                    w = b[v]
+                    if w is None:
+                        if a.maxb:   # would capture a variable bound inside the pattern
+                            ok = False
+                            break
+                        b[v] = a
+                        trail.append(v)
+                    elif w is not a:
+                        ok = False
+                        break
+                elif kind == _CONST:
+                    if a is not v:
+                        ok = False
+                        break
+                elif not match(v, a, b, trail):
+                    ok = False
+                    break
+            if ok:
+                if leaf:
+                    out.append((tuple(b), (*consumed, (LIN, t))))
+                    stop = first_only
+                else:
+                    consumed.append((LIN, t))
+                    stop = _search(plan, left - 1, done, b, consumed, trail, ctx, tpl, back, prover, out,
+                                   first_only, start)
+                    consumed.pop()
+            while len(trail) > mark:
+                b[trail.pop()] = None
+            if stop:
+                break
+        done[best] = False
+        return stop
     for t in items:
         targs = t.args
         if len(targs) != arity:
@@ -428,10 +478,14 @@ def _search(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, f
                     ok = False
                     break
             if ok:
-                consumed.append((mode, t))
-                stop = _search(plan, left - 1, done, b, consumed, trail, ctx, tpl, back, prover, out, first_only,
-                               start)
-                consumed.pop()
+                if leaf:
+                    out.append((tuple(b), (*consumed, (mode, t))))
+                    stop = first_only
+                else:
+                    consumed.append((mode, t))
+                    stop = _search(plan, left - 1, done, b, consumed, trail, ctx, tpl, back, prover, out,
+                                   first_only, start)
+                    consumed.pop()
             while len(trail) > mark:
                 b[trail.pop()] = None
             if stop or not ok:
@@ -448,6 +502,21 @@ def _search_back(k, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
         out.append((tuple(b), tuple(consumed)))
         return first_only
     mark = len(trail)
+    quick = getattr(prover, "quick", None)
+    if quick is not None:
+        # a memoised answer (the same as the proof search below gives, without a generator)
+        hit = quick(ctx, back[k], b)
+        if hit is not None:
+            found = hit[0]
+            if found is None:
+                return False
+            for i, v in found:
+                b[i] = v
+                trail.append(i)
+            stop = _search_back(k + 1, back, b, consumed, trail, ctx, tpl, prover, out, first_only)
+            while len(trail) > mark:
+                b[trail.pop()] = None
+            return stop
     stop = False
     proofs = prover(ctx, tpl, back[k], b, trail, consumed)
     try:
@@ -1104,10 +1173,39 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
     paths = _context_paths(ctx)
     pairs, unique = _filters(templates)
     seen_all: Optional[set] = None if unique else set()
+    # a context of linear facts, each once (a compiled ROAR model's): rules with proved premises
+    # that had no match on the same facts before have none now (see _zero_memo)
+    zero_ok = (not first_only and not ctx.aff and not ctx.pers and not ctx.open
+               and getattr(prover, "quick", None) is not None and len(ctx.lin) == sum(ctx.lin.values()))
+    index = ctx.index
     for t, need in pairs:
         if not need <= paths:
             continue
+        zkey = None
+        if zero_ok:
+            fams = t.__dict__.get("_zero_fams", False)
+            if fams is False:
+                fams = t._zero_fams = _zero_families(t)
+            if fams is not None:
+                key = [t]
+                for f in fams:   # (one flat tuple, the families' facts each followed by None)
+                    bag = index.get(f)
+                    if bag is not None:
+                        key += bag.items
+                    key.append(None)
+                zkey = tuple(key)
+                ids = _zero_memo.get(zkey)
+                if ids is None:
+                    ids = _zero_older.get(zkey)
+                    if ids is not None:
+                        _zero_remember(zkey, ids)
+                if ids is not None:
+                    skip_param_ids(ids)   # the ids the proofs would have taken
+                    continue
+                first_id = next_param_id()
         found = all_matches(ctx, t, [None] * t.nslots, prover, first_only)
+        if zkey is not None and not found:
+            _zero_remember(zkey, next_param_id() - first_id)
         if seen_all is not None:   # a template listed twice: its matches are yielded once
             for bindings, consumed in found:
                 key = (id(t), bindings, multiset_key(consumed))
@@ -1137,6 +1235,40 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
                 yield Choice(t, r.uid, bindings, consumed)
                 if first_only:
                     return
+
+
+#: (template, the facts of each family its context premises read, in bag order) -> the ids its
+#: proofs took, for a template that had no match on those facts. Why: a rule whose proved
+#: premises fail (a compiled ROAR model's ``continued``, ``pause_forward``) joins its context
+#: premises fully in state after state only to fail at the proofs, and the families it reads
+#: often have the same facts as in the state expanded before. The answer (no match) depends on
+#: those facts alone, counted once each (the matcher reads nothing else of a context of linear
+#: facts, and a persistent premise's proof nothing of it); the ids are skipped as the proofs
+#: would have taken them (each memoised proof takes as many as when it ran). Two generations of
+#: at most _ZERO_MEMO_MAX entries each: the answers used lately are kept, the memory bounded.
+_zero_memo: dict = {}
+_zero_older: dict = {}
+_ZERO_MEMO_MAX = 512
+
+
+def _zero_remember(key: tuple, ids: int) -> None:
+    global _zero_memo, _zero_older
+    if len(_zero_memo) >= _ZERO_MEMO_MAX:
+        _zero_older = _zero_memo
+        _zero_memo = {}
+    _zero_memo[key] = ids
+
+
+def _zero_families(t: Template) -> Optional[tuple]:
+    """The families of a template's context premises, in order, when a missing match of it may
+    be memoised (it has proved premises, each persistent or built-in); None otherwise."""
+    back = [p for p in t.premises if p.backward]
+    if not back or any(p.mode != PERS and p.family not in BUILTINS for p in back):
+        return None
+    fams = tuple(dict.fromkeys(p.family for p in t.premises if not p.backward))
+    if any(f is None for f in fams):
+        return None
+    return fams
 
 
 #: templates list -> (the list, its length, what _filters returns): a program's list is read
@@ -1171,12 +1303,17 @@ def _filters(templates) -> tuple:
 _PATH_DEPTH = 2
 
 #: fact -> its rigid paths (facts are hash-consed and recur from state to state); the paths
-#: themselves are interned, as most facts share them. Emptied when it reaches _PATHS_MAX facts.
+#: themselves are interned, as most facts share them. Emptied when it reaches _PATHS_MAX facts
+#: (the facts of the frontier's states are those asked for again; kept for every fact ever
+#: seen, the table would grow by about 100 bytes per state visited, benchmark B8).
 _fact_paths: dict = {}
 _path_intern: dict = {}
-_PATHS_MAX = 500_000
-#: a bag's paths -> itself (the bags of one family in state after state mostly have the same)
+_PATHS_MAX = 2048
+#: a bag's paths -> itself: the live bags of one family (in the frontier's contexts) mostly have
+#: the same. Emptied at _BAG_PATHS_MAX entries: kept for every bag ever made, it would grow by a
+#: few hundred bytes per state visited (benchmark B8), as frozen states keep no bags
 _bag_paths_intern: dict = {}
+_BAG_PATHS_MAX = 512
 
 
 def _rigid_paths(t: Node, prefix: tuple, depth: int, out: list) -> None:
@@ -1218,7 +1355,10 @@ def _context_paths(ctx: Context) -> set:
         ps = bag.paths
         if ps is None:
             ps = _bag_paths(bag.items)
-            ps = bag.paths = _bag_paths_intern.setdefault(ps, ps)
+            intern = _bag_paths_intern
+            if len(intern) >= _BAG_PATHS_MAX:
+                intern.clear()
+            ps = bag.paths = intern.setdefault(ps, ps)
         out |= ps
     return out
 
@@ -1232,7 +1372,6 @@ def _bag_paths(facts: list) -> frozenset:
             if len(memo) >= _PATHS_MAX:
                 memo.clear()
                 _path_intern.clear()
-                _bag_paths_intern.clear()
             got = [(t.head,)]
             _rigid_paths(t, (t.head,), _PATH_DEPTH, got)
             ps = memo[t] = tuple([_path_intern.setdefault(p, p) for p in got])
@@ -1251,6 +1390,86 @@ def successor(ctx: Context, choice: Choice) -> tuple[Context, Step]:
     crule = c.rules[choice.ctx_rule] if choice.ctx_rule is not None else None
     step = fire(c, choice.template, list(choice.bindings), list(choice.consumed), crule)
     return c, step
+
+
+class FactsView:
+    """The facts, rules and hypotheses of a successor not yet built (see :func:`plan_successor`):
+    what ``state.canonical_key`` reads, without the matching indexes a context carries."""
+
+    __slots__ = ("lin", "aff", "pers", "rules", "inert", "open", "_canon")
+
+    def __init__(self, lin: dict, aff: dict, pers: dict, rules: dict, inert: list, open_: list):
+        self.lin, self.aff, self.pers, self.rules, self.inert, self.open = lin, aff, pers, rules, inert, open_
+        self._canon = None
+
+
+def _plain_head(tpl: Template) -> bool:
+    """Does the template's head only make fresh names and add facts (no rule, no inert
+    hypothesis, no logic variable)? Decided once per template."""
+    got = tpl.__dict__.get("_plain_head")
+    if got is None:
+        got = tpl._plain_head = not tpl.open_slots and all(act[0] in ("fresh", "fact") for act in tpl.head)
+    return got
+
+
+def plan_successor(ctx: Context, choice: Choice) -> Optional[tuple[FactsView, Step]]:
+    """The step :func:`successor` would take and the facts of the state it gives, without
+    building that state's context: ``(view, step)``, or None when the step is not a plain
+    one (a context rule, a head adding rules or hypotheses, logic variables).
+
+    Why: the explorer needs a successor's canonical key first, and most successors are states
+    visited already; their indexes would be built only to be dropped. The facts' dictionaries
+    change exactly as :func:`fire` changes them (so their order, which the key reads, is the
+    same), and the fresh names are made in the same order; :func:`build_planned` makes the
+    context when the state is new."""
+    tpl = choice.template
+    if choice.ctx_rule is not None or ctx.open or not _plain_head(tpl):
+        return None
+    lin = ctx.lin.copy()
+    aff = ctx.aff.copy()
+    pers = ctx.pers.copy()
+    consumed = list(choice.consumed)
+    for mode, t in consumed:   # as Context.remove_fact
+        if mode == LIN:
+            n = lin[t] - 1
+            if n:
+                lin[t] = n
+            else:
+                del lin[t]
+        elif mode == AFF:
+            n = aff[t] - 1
+            if n:
+                aff[t] = n
+            else:
+                del aff[t]
+    b = list(choice.bindings)
+    produced = []
+    for act in tpl.head:
+        if act[0] == "fresh":
+            b[act[1]] = Root(Param(act[2]), ())
+            continue
+        mode = act[1]
+        t = inst(act[2], b)
+        if mode == LIN:   # as Context.add_fact
+            lin[t] = lin.get(t, 0) + 1
+        elif mode == AFF:
+            aff[t] = aff.get(t, 0) + 1
+        elif t not in pers:
+            pers[t] = None
+        produced.append((mode, t))
+    step = Step(tpl.name, tpl, tuple(b), consumed, None, produced)
+    return FactsView(lin, aff, pers, ctx.rules, ctx.inert, ctx.open), step
+
+
+def build_planned(ctx: Context, step: Step) -> Context:
+    """The context of a step :func:`plan_successor` planned from ``ctx``: the one
+    :func:`successor` gives (the same removals and additions in the same order)."""
+    c = ctx.copy()
+    for mode, t in step.consumed:
+        c.remove_fact(t, mode)
+    for mode, t in step.produced:
+        c.add_fact(t, mode)
+    return c
 
 
 def load_positive(ctx: Context, s: Node, compile_fn, name: str = "init") -> list:

@@ -11,7 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-from .backward import Backward, head_families, prove_premise
+from .backward import Backward, head_families, memo_answer, prove_premise
+from .terms import skip_param_ids
 from .builtins import BUILTIN_FAMILIES
 from .context import Context
 from .forward import Choice, Run, Step, enabled_steps, load_positive, successor
@@ -168,3 +169,11 @@ class _Prover:
 
     def __call__(self, ctx, tpl, p, b, trail, consumed=()):
         return prove_premise(self.bw, ctx, tpl, p, b, trail, consumed)
+
+    def quick(self, ctx, p, b):
+        """The memoised answer of a premise, if any (see :func:`memo_answer`), its skipped
+        ids taken as :func:`prove_premise` takes them: the matcher then needs no generator."""
+        hit = memo_answer(self.bw, ctx, p, b)
+        if hit is not None:
+            skip_param_ids(b.count(None) + hit[1])
+        return hit

@@ -345,16 +345,19 @@ def _shapes(payload: tuple, pl: tuple, shapes: list, colour: dict, memo: dict) -
 #: term -> (its names in params_of's order (None when it has one), placeholder term, its names
 #: in occurrence order (with repeats; None when it has one), the term with its names numbered
 #: locally, its name when it has one, its first-round code as a linear fact): every fact recurs from state
-#: to state, so this is computed once per distinct fact. Emptied at _MEMO_MAX entries (the
-#: values are hash-consed terms and tuples: recomputing gives the same objects).
+#: to state, so this is computed once per distinct fact. Emptied at _INFO_MAX entries (the
+#: values are hash-consed terms and tuples: recomputing gives the same objects): a fact's
+#: entry serves the states of the frontier that hold it, and kept for every fact ever seen the
+#: table would grow by about 200 bytes per state visited (benchmark B8).
 _term_info: dict = {}
+_INFO_MAX = 2048
 _PLACEHOLDER = CanonParam(-1)
 
 
 def _info(t: Node) -> tuple:
     r = _term_info.get(t)
     if r is None:
-        if len(_term_info) >= _MEMO_MAX:
+        if len(_term_info) >= _INFO_MAX:
             _term_info.clear()
         ps = tuple(params_of(t, {}))
         abs0, local = _abs_local(t, {p: CanonParam(i) for i, p in enumerate(ps)})

@@ -78,6 +78,23 @@ class Lit(Head):
 _param_ids = itertools.count(1)
 
 
+def next_param_id() -> int:
+    """The id the next fresh name or logic variable will get (read by taking it and restarting
+    the counter there: O(1), unlike parsing the counter's repr)."""
+    global _param_ids
+    n = next(_param_ids)
+    _param_ids = itertools.count(n)
+    return n
+
+
+def skip_param_ids(n: int) -> None:
+    """Skip the next ``n`` ids: those a proof search whose answer is memoised would have taken,
+    so the fresh names made afterwards (and printed in traces) are numbered as without the memo."""
+    global _param_ids
+    if n:
+        _param_ids = itertools.count(next(_param_ids) + n)
+
+
 class Param(Head):
     """A fresh name (``Exists`` in the monad, ``Pi`` in a goal). Unique by identity.
 

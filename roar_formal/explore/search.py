@@ -102,43 +102,87 @@ class MemoryWatch:
 LIVE_FRONTIER = 2048
 
 
+#: an expanded state built from its discovery parent by a step that only consumes and adds facts
+#: is kept as nothing and rebuilt from its parent when read (see StateStore), unless its depth is
+#: a multiple of this: then it is kept frozen, so that a rebuild replays fewer steps than this
+REPLAY_SPAN = 4
+
+
 class StateStore:
     """The visited states by id. A system with ``freeze``/``thaw`` (a CLF context without its
     matching indexes) has its expanded states kept frozen, a few hundred bytes each, and thawed
     when read again: the few read most recently stay thawed (properties read them in order).
     States waiting in a short frontier stay as they are (a successor shares its parent's indexes);
-    past ``LIVE_FRONTIER`` waiting states, new ones are frozen too."""
+    past ``LIVE_FRONTIER`` waiting states, new ones are frozen too.
+
+    An expanded state that a system with ``rebuild`` built from its discovery parent by a plain
+    step (``append(state, plain=True)``) is not kept at all, unless its depth is a multiple of
+    ``REPLAY_SPAN``: reading it replays the discovery steps from the nearest ancestor kept (the
+    graph's parent pointers, the steps of ``steps``), which gives the state thawing it would."""
 
     def __init__(self, system, keep: int = 8):
         self.freeze = getattr(system, "freeze", None)
         self.thaw = getattr(system, "thaw", None)
         self.frozen = getattr(system, "frozen_type", None)
+        self.rebuild = getattr(system, "rebuild", None) if self.thaw is not None else None
         self.items: list = []
+        self.plain = bytearray()   # 1: built from its discovery parent by a plain step
         self.recent: dict = {}
         self.keep = keep
+        self.graph: Optional[StateGraph] = None   # the explorer's graph and steps (for rebuilds)
+        self.steps = None
 
-    def append(self, state) -> None:
+    def append(self, state, plain: bool = False) -> None:
         self.items.append(state)
+        self.plain.append(1 if plain else 0)
 
     def done(self, i: int) -> None:
         """State ``i`` is expanded (from now on it is only read back), or waits in a frontier so
-        long that keeping it live costs more memory than thawing it later costs time: keep it frozen."""
-        if self.freeze is not None and not isinstance(self.items[i], self.frozen):
-            self.items[i] = self.freeze(self.items[i])
+        long that keeping it live costs more memory than thawing it later costs time: keep it
+        frozen, or (expanded, and rebuilt from its parent when read) drop it."""
+        x = self.items[i]
+        if self.freeze is None or x is None:
+            return
+        g = self.graph
+        if (self.rebuild is not None and self.plain[i] and g is not None and self.steps is not None
+                and g.expanded[i] and g.depth[i] % REPLAY_SPAN):
+            self.items[i] = None
             self.recent.pop(i, None)
+        elif not isinstance(x, self.frozen):
+            self.items[i] = self.freeze(x)
+            self.recent.pop(i, None)
+
+    def _rebuilt(self, i: int):
+        """State ``i`` (dropped): its discovery steps replayed from the nearest ancestor kept."""
+        g = self.graph
+        edges = []
+        j = i
+        while True:
+            x = self.items[j]
+            if x is not None:
+                base = x
+                break
+            hit = self.recent.get(j)
+            if hit is not None and j != i:
+                base = hit
+                break
+            edges.append(g.parent_edge[j])
+            j = g.parent[j]
+        edges.reverse()
+        return self.rebuild(base, [self.steps[e] for e in edges])
 
     def __len__(self) -> int:
         return len(self.items)
 
     def __getitem__(self, i: int):
         x = self.items[i]
-        if self.thaw is None or not isinstance(x, self.frozen):
+        if self.thaw is None or (x is not None and not isinstance(x, self.frozen)):
             return x
         if i < 0:
             i += len(self.items)
         hit = self.recent.get(i)
         if hit is None:
-            hit = self.thaw(x)
+            hit = self.thaw(x) if x is not None else self._rebuilt(i)
             if len(self.recent) >= self.keep:
                 del self.recent[next(iter(self.recent))]
             self.recent[i] = hit
@@ -211,6 +255,7 @@ class Explorer:
         self._add(s0, -1, -1, 0)
         self.frontier: deque[int] = deque([0])
         self.steps = StepStore(system)  # edge index -> engine step (for describing counterexamples)
+        self.states.graph, self.states.steps = self.graph, self.steps   # (rebuilding dropped states)
         self.graph.describe_state = lambda i: system.describe(self.states[i])
         self.graph.describe_edge = lambda e: system.describe_step(self.steps[e])
         self.started = time.perf_counter()
@@ -230,15 +275,19 @@ class Explorer:
         self._rng = random.Random(seed)
 
     def _key(self, state):
-        k = self.system.key(state)
+        return self._from_key(self.system.key(state))
+
+    def _from_key(self, k):
+        """The visited set's key of a state whose system key is ``k``."""
         if self.bitstate is not None:
             return _bit_positions(k, self.bits)
         return hash(k) if self.hashed else k
 
-    def _add(self, state, parent: int, edge: int, depth: int) -> int:
+    def _add(self, state, parent: int, edge: int, depth: int, k=None, plain: bool = False) -> int:
         sid = self.graph.add_state(parent, edge, depth)
-        self.states.append(state)
-        k = self._key(state)
+        self.states.append(state, plain)
+        if k is None:
+            k = self._key(state)
         if self.bitstate is not None:
             self._seen(k)   # sets its bits
         else:
@@ -284,6 +333,7 @@ class Explorer:
         last_report = t0
         pop = self.frontier.popleft if self.order == "bfs" else self.frontier.pop
         system = self.system
+        lazy_fn = getattr(system, "lazy_successors", None)
         memory = MemoryWatch(budget.max_memory_mb)
         while self.frontier:
             if budget.max_states is not None and g.n_states >= budget.max_states:
@@ -299,24 +349,36 @@ class Explorer:
             s = pop()
             state = self.states[s]
             depth = g.depth[s] + 1
-            if self.reduce:
+            views = None
+            lazy = None if self.reduce or lazy_fn is None else lazy_fn(state)
+            if lazy is not None:
+                # keys first, states built only for the new ones (see ClfSystem.lazy_successors)
+                if self._rng is not None:
+                    self._rng.shuffle(lazy)
+                succs = [x[0] for x in lazy]
+                keys = [self._from_key(x[1]) for x in lazy]
+                views = [x[2] for x in lazy]
+            elif self.reduce:
                 succs, keys = self._expand_reduced(state, s)
             else:
                 succs = system.successors(state)
                 if self._rng is not None:
                     self._rng.shuffle(succs)
                 keys = [self._key(x.state) for x in succs]
-            for succ, k in zip(succs, keys):
+            for i, (succ, k) in enumerate(zip(succs, keys)):
                 if self.bitstate is not None:
                     if self._seen(k):   # taken as visited: counted, not recorded (it has no id here)
                         un = g.unrecorded
                         un[s] = un.get(s, 0) + 1
                         continue
                     t = len(self.states)
+                    plain = succ.state is None
+                    if plain:
+                        succ.state = system.build_successor(state, succ, views[i])
                     e = g.add_edge(s, t, succ.label, succ.group, succ.progress)
                     self.steps.append(succ.step)
                     sid = g.add_state(s, e, depth)
-                    self.states.append(succ.state)
+                    self.states.append(succ.state, plain)
                     self.frontier.append(sid)
                     if len(self.frontier) > LIVE_FRONTIER:
                         self.states.done(sid)
@@ -328,7 +390,10 @@ class Explorer:
                 e = g.add_edge(s, t, succ.label, succ.group, succ.progress)
                 self.steps.append(succ.step)
                 if new:
-                    self._add(succ.state, s, e, depth)
+                    plain = succ.state is None
+                    if plain:
+                        succ.state = system.build_successor(state, succ, views[i])
+                    self._add(succ.state, s, e, depth, k, plain)
                     self.frontier.append(t)
                     if len(self.frontier) > LIVE_FRONTIER:
                         self.states.done(t)

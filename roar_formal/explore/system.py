@@ -15,8 +15,8 @@ import fnmatch
 from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Optional, Protocol, Sequence, runtime_checkable
 
-from ..clf.context import Context, FrozenContext
-from ..clf.forward import Step, inst
+from ..clf.context import Context, FrozenContext, replay
+from ..clf.forward import Step, build_planned, inst, plan_successor
 from ..clf.program import Program
 from ..clf.query import show_context
 from ..clf.rules import PERS
@@ -90,6 +90,38 @@ class ClfSystem:
     def successors(self, state: Context) -> list[Successor]:
         return [self._successor(state, choice) for choice in self.program.steps(state)]
 
+    def lazy_successors(self, state: Context) -> Optional[list]:
+        """The successors with their keys, each state built only when asked for: ``[(successor,
+        key, view)]`` where a successor whose ``state`` is None is built by
+        :meth:`build_successor` from its ``view``; None when this system cannot (the explorer
+        then calls :meth:`successors`). The same successors, keys and fresh names as
+        ``successors`` gives, in the same order: the explorer builds only the new states (most
+        successors are states visited already, whose matching indexes would be thrown away)."""
+        if not self._lazy_ok():
+            return None
+        out = []
+        for choice in self.program.steps(state):
+            planned = plan_successor(state, choice)
+            if planned is None:
+                succ = self._successor(state, choice)
+                out.append((succ, self.key(succ.state), None))
+                continue
+            view, step = planned
+            out.append((Successor(choice.rule, self._group_of(state, choice), self._progress(choice.rule), None, step),
+                        canonical_key(view), view))
+        return out
+
+    def build_successor(self, state: Context, succ: Successor, view) -> Context:
+        """The state of a successor :meth:`lazy_successors` left unbuilt (its key kept on it)."""
+        nxt = build_planned(state, succ.step)
+        nxt._canon = (nxt.inert, len(nxt.inert), view._canon[2])
+        return nxt
+
+    def _lazy_ok(self) -> bool:
+        """May successors be built lazily? Only where the steps, keys and successors are this
+        class's own (a subclass that changes them opts in itself) and keys are canonical."""
+        return self.options.canonical and unchanged_system(self, ClfSystem)
+
     frozen_type = FrozenContext
 
     def freeze(self, state: Context) -> FrozenContext:
@@ -98,6 +130,11 @@ class ClfSystem:
 
     def thaw(self, frozen: FrozenContext) -> Context:
         return frozen.thaw()
+
+    def rebuild(self, base, steps: list) -> Context:
+        """The state the successors built by :meth:`build_successor` along ``steps`` reach from
+        ``base`` (a state, or one frozen), as :meth:`thaw` gives it had it been frozen."""
+        return replay(base, steps)
 
     def pack_step(self, step):
         """A step as the explorer keeps it (one per transition): an engine :class:`Step` as one
@@ -110,14 +147,18 @@ class ClfSystem:
             return step
         consumed = step.consumed
         pairs = _pairs
-        if len(pairs) >= _PAIRS_MAX:
+        if len(pairs) >= _PAIRS_MAX or len(_packed) >= _PAIRS_MAX:
             pairs.clear()
+            _packed.clear()
         out = [step.rule, step.template, step.ctx_rule, len(consumed)]
         for pr in consumed:
             out.append(pairs.setdefault(pr, pr) if type(pr) is tuple else pr)
         for pr in step.produced:
             out.append(pairs.setdefault(pr, pr) if type(pr) is tuple else pr)
-        return PackedStep(out)
+        packed = PackedStep(out)
+        # one step taken from several states (interleavings of independent steps: the same
+        # rule on the same facts) is kept once
+        return _packed.setdefault(packed, packed)
 
     def unpack_step(self, packed):
         """The step ``pack_step`` packed (a new :class:`Step` equal to the one taken)."""
@@ -181,6 +222,14 @@ class ClfSystem:
         return {"rule": step.rule, "consumed": consumed, "produced": produced}
 
 
+def unchanged_system(system, cls) -> bool:
+    """Are ``system``'s successors, keys and successor construction those of class ``cls`` (not
+    overridden by a subclass of it or on the instance)?"""
+    own = type(system)
+    return not ({"successors", "key", "_successor"} & system.__dict__.keys()) and all(
+        getattr(own, name) is getattr(cls, name) for name in ("successors", "key", "_successor"))
+
+
 class PackedStep(tuple):
     """An engine step packed by :meth:`ClfSystem.pack_step`: (rule, template, context rule,
     number consumed, *consumed pairs, *produced pairs). A tuple of its own type, so
@@ -189,8 +238,11 @@ class PackedStep(tuple):
     __slots__ = ()
 
 
-#: (mode, fact) -> itself: the pairs packed steps share. Emptied when it reaches _PAIRS_MAX.
+#: (mode, fact) -> itself: the pairs packed steps share; a packed step -> itself (a transition
+#: is often the step of another one, taken from another state). Both emptied when either
+#: reaches _PAIRS_MAX.
 _pairs: dict = {}
+_packed: dict = {}
 _PAIRS_MAX = 200_000
 
 

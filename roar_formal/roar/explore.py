@@ -34,7 +34,7 @@ from ..clf.context import Context
 from ..clf.rules import LIN
 from ..clf.terms import Const, Param, Root, const, param_term
 from ..errors import RoarError
-from ..explore.system import ClfSystem, Options, Successor
+from ..explore.system import ClfSystem, Options, Successor, unchanged_system
 from .compile import CompiledModel
 from . import vocabulary as V
 from .run import list_items
@@ -243,6 +243,10 @@ class RoarSystem(ClfSystem):
         if self.pairs:
             self._monitor(state, nxt, step)
         return Successor(choice.rule, self._group_of(state, choice), self._progress(choice.rule), nxt, step)
+
+    def _lazy_ok(self) -> bool:
+        """Lazily built successors (see ClfSystem.lazy_successors) when no monitor reads them."""
+        return not self.pairs and self.options.canonical and unchanged_system(self, RoarSystem)
 
     def _group_of(self, state: Context, choice) -> str:
         """The fairness group: the agent taking the step, or a fair outcome's own group."""
