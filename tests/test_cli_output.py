@@ -112,7 +112,8 @@ def test_shell_completion_names_commands_and_options():
     """`roar-verify --show-completion` (in bash) prints a script for `roar-verify`; the script's
     protocol completes command names and a command's options."""
     import os
-    script = subprocess.run([sys.executable, "-m", "roar_formal", "--show-completion"], capture_output=True,
+    # (the shell named: detecting it walks up the process tree, which under a test runner may hold none)
+    script = subprocess.run([sys.executable, "-m", "roar_formal", "--show-completion", "bash"], capture_output=True,
                             text=True, timeout=60, env={**os.environ, "SHELL": "/bin/bash"})
     assert script.returncode == 0 and "_roar_verify_completion()" in script.stdout
     env = {**os.environ, "_ROAR_VERIFY_COMPLETE": "complete_bash", "COMP_WORDS": "roar-verify ch", "COMP_CWORD": "1"}
