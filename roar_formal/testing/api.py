@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, Optional, Sequence, Un
 from ..errors import Pos, RoarError
 from ..lines import Lines
 from ..explore.search import Budget
+from ..verify.jobs import SPEC_DEFAULTS as _SPEC_DEFAULTS
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..clf.program import Program
@@ -50,7 +51,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 __all__ = [
     "AgentSpec", "ClfModel", "ClfRun", "Counterexample", "Exploration", "RunReport", "Budget", "RoarError",
     "Job", "load", "load_spec", "load_clf", "load_job", "load_jobs", "is_model_path", "parse_faults", "as_budget",
-    "write_html_report", "ROAR_PROPERTIES", "CLF_PROPERTIES", "Replay", "replay",
+    "write_html_report", "ROAR_PROPERTIES", "CLF_PROPERTIES", "SPEC_DEFAULTS", "Replay", "replay", "ScheduledFault",
 ]
 
 PathLike = Union[str, Path]
@@ -62,6 +63,17 @@ ROAR_PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-
                    "mission-completion", "mission-failure", "incompatible-tasks")
 #: properties a job on a .clf model can check
 CLF_PROPERTIES = ("deadlock", "livelock", "invariant")
+#: what :meth:`AgentSpec.explore` checks when no property is named: what ``roar-verify check`` checks on a
+#: spec (deadlock, mission-completion, mission-failure; docs/checking.md, "Jobs on a ROAR spec")
+SPEC_DEFAULTS = tuple(_SPEC_DEFAULTS)
+
+
+class ScheduledFault(str):
+    """A ``--fault`` value drawn by a generated fault schedule (``strategies.fault_schedules``):
+    it may name a call the run never makes, so by default a run lists it in
+    ``RunReport.unused_faults`` instead of refusing it, as it refuses a fault written by hand."""
+
+    __slots__ = ()
 
 
 # ---------------------------------------------------------------------------- loading
@@ -259,15 +271,19 @@ class AgentSpec:
 
     # -- running -----------------------------------------------------------------------
     def run(self, request: str, *, seed: int = 0, faults: Iterable[FaultLike] = (), max_steps: int = 100_000,
-            fair: bool = False, strict_faults: bool = False, scenario: Optional[PathLike] = None,
+            fair: bool = False, strict_faults: Optional[bool] = None, scenario: Optional[PathLike] = None,
             crashes: Iterable[Any] = (), time: Any = None, wait_timeout: Optional[int] = None) -> "RunReport":
         """Run the spec on ``request`` to quiescence, as ``roar-verify run`` does (or, with a
         ``scenario``, on the reference robot as ``roar-verify simulate`` does).
 
         ``faults`` are ``NAME``, ``NAME:K`` or ``NAME=OUTCOME`` (docs/spec-language.md, Faults);
-        on the robot, scenario fault points too. A fault that matched no call is an error with
-        ``strict_faults`` (the command line's behaviour); otherwise it is listed in
-        ``RunReport.unused_faults``: a generated fault schedule may name calls a run never makes.
+        on the robot, scenario fault points too. A fault naming no function of the spec is an error
+        before the run (with a did-you-mean). A fault that matched no call is an error, as on the
+        command line (``--fault close_jaws:5: no such call happened in this run ...``), except a
+        fault drawn by ``fault_schedules`` (a :class:`ScheduledFault`: a generated schedule may
+        name calls a run never makes), which is listed in ``RunReport.unused_faults``.
+        ``strict_faults=False`` lists every such fault there instead; ``strict_faults=True``
+        refuses generated ones too.
         ``crashes`` are ``AGENT@STEP`` or ``AGENT@STEP-BACK`` (``--crash``; docs/semantics.md, Crashes).
         ``time="timed"`` models the periods of wait, assert and ensure, a wait giving up after
         ``wait_timeout`` ms (``--time``, ``--wait-timeout``; docs/semantics.md, Time).
@@ -283,15 +299,18 @@ class AgentSpec:
                 raise RoarError("the timed mode is for runs on the model; on the robot, time is the robot's "
                                 "simulated time")
             return self._simulate(request, Path(scenario), seed, texts, max_steps, strict_faults)
-        wanted = list(dict.fromkeys(parse_faults(texts)))
+        parsed = parse_faults(texts)
+        wanted = list(dict.fromkeys(parsed))
+        scheduled = {f for t, f in zip(texts, parsed) if isinstance(t, ScheduledFault)}
         model = self.compile(request, "python", crashes=crashes or None, time=time, wait_timeout=wait_timeout)
+        _check_fault_names(wanted, self, model)
         res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self._run_registry(), fs, fair,
-                                                          crashes), wanted, strict_faults)
+                                                          crashes), wanted, strict_faults, scheduled)
         return RunReport(self.name, request, seed, tuple(texts), res, max_steps,
                          tuple(str(f) for f in unused), functional=self.functional)
 
     def _simulate(self, request: str, scenario: Path, seed: int, faults: list[str], max_steps: int,
-                  strict_faults: bool) -> "RunReport":
+                  strict_faults: Optional[bool]) -> "RunReport":
         from ..roar.compile import compile_spec
         from ..robot.binding import load_robot_binding
         from ..robot.setup import split_faults
@@ -302,8 +321,10 @@ class AgentSpec:
         sc = load_scenario(scenario)
         binding = load_robot_binding(self._file(), self.functional)
         model = compile_spec(self.ast, request, registry=binding.robot, functional="python")
-        world, prims = split_faults(faults, sc, model)
+        world, prims = split_faults(faults, sc, model)   # a name that is neither is refused there
         wanted = list(dict.fromkeys(prims))
+        points = set(world)
+        scheduled = {f for f in parse_faults(t for t in faults if isinstance(t, ScheduledFault) and t not in points)}
         sim_box: list = []
         fresh = [binding]   # the first run uses the binding loaded above; a second one gets its own robot layer
 
@@ -313,20 +334,24 @@ class AgentSpec:
             sim_box[:] = [sim]
             return sim.run
 
-        res, unused = _run_tolerant(go, wanted, strict_faults)
+        res, unused = _run_tolerant(go, wanted, strict_faults, scheduled)
         return RunReport(self.name, request, seed, tuple(faults), res, max_steps,
                          tuple(str(f) for f in unused), robot=sim_box[0], scenario=sc, scenario_path=scenario,
                          functional=binding.path)
 
     # -- exploring ---------------------------------------------------------------------
-    def explore(self, request: str, properties: Sequence[str] = ("deadlock", "livelock"), *,
+    def explore(self, request: str, properties: Optional[Sequence[str]] = None, *,
                 never: Sequence[str] = (), progress: Sequence[str] = (), sequence_recipes: Sequence[str] = (),
                 budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None,
                 crash: Sequence[str] = (), max_crashes: int = 1,
                 incompatible: Sequence[Sequence[str]] = (), time: Any = None,
                 wait_timeout: Optional[int] = None) -> "Exploration":
         """Explore every interleaving and every declared outcome of the functional layer, as a
-        job on a spec does (docs/checking.md); ``never`` patterns add the ``invariant`` property,
+        job on a spec does (docs/checking.md). Without ``properties``, what ``roar-verify check``
+        checks on a spec: :data:`SPEC_DEFAULTS` (deadlock, mission-completion, mission-failure).
+        ``never`` adds the ``invariant`` property; as in a job file's ``[invariant] never``, each is a
+        predicate in the spec's terms (``"cell::rate == 5 && request R0 finished"``, docs/checking.md,
+        "Properties in the spec's terms") or a CLF pattern (``"busy P * busy P"``);
         ``incompatible`` pairs of 'agent::task' names the ``incompatible-tasks`` property (no two
         live requests hold them at once; without pairs it checks those the spec makes incompatible).
         ``time="timed"`` (with ``wait_timeout`` in ms) explores the timed model (a job's ``time``).
@@ -334,13 +359,17 @@ class AgentSpec:
         run (a job's [faults] table; docs/semantics.md, Crashes)."""
         from ..roar.compile import Crashes
         from ..verify.jobs import Job, PropertySpec
+        # marked "(a default property)" as check marks them, unless never or incompatible add one that is not
+        defaulted = properties is None and not never and not incompatible
+        properties = SPEC_DEFAULTS if properties is None else properties
         wanted = list(properties) + (["incompatible-tasks"] if incompatible and "incompatible-tasks" not in properties
                                      else [])
         props = _properties(wanted, never, ROAR_PROPERTIES)
         spec_path = self._file()
-        ps = PropertySpec(check=props, progress=list(progress), sequence_recipes=list(sequence_recipes))
+        ps = PropertySpec(check=props, progress=list(progress), sequence_recipes=list(sequence_recipes),
+                          defaulted=defaulted)
         pos = _caller_pos()
-        ps.never = [(p, pos) for p in never]
+        ps.never, ps.spec_never = _never(never, pos)
         for pair in incompatible:
             if isinstance(pair, str) or len(pair) != 2 or not all(isinstance(x, str) and "::" in x for x in pair):
                 raise RoarError(f"incompatible is a list of pairs of tasks named 'agent::task', not {pair!r}", pos)
@@ -375,7 +404,7 @@ class AgentSpec:
         if robot_never or robot_always:
             props.append("robot-invariant")
         ps = PropertySpec(check=props, progress=list(progress))
-        ps.never = [(p, pos) for p in never]
+        ps.never, ps.spec_never = _never(never, pos)
         ps.robot_never = [(c, pos) for c in robot_never]
         ps.robot_always = [(c, pos) for c in robot_always]
         if isinstance(quantise, str):
@@ -441,9 +470,11 @@ def _run_model(model: "CompiledModel", seed: int, max_steps: int, registry: Opti
 _UNUSED = re.compile(r"^--fault (.*): no such call happened in this run")
 
 
-def _run_tolerant(go, faults: list, strict: bool):
-    """Run with ``faults``; unless ``strict``, a fault that matched no call is dropped (the run is
-    the same without it: it never changed an answer) and returned as unused."""
+def _run_tolerant(go, faults: list, strict: Optional[bool], scheduled: Iterable["Fault"] = ()):
+    """Run with ``faults``. A fault that matched no call is an error (the command line's) with
+    ``strict``; without (False), it is dropped (the run is the same without it: it never changed
+    an answer) and returned as unused; by default (None) only the ``scheduled`` ones (drawn by a
+    generated schedule) are dropped so, and any other one is the error."""
     try:
         return go(faults), []
     except RoarError as exc:
@@ -454,7 +485,35 @@ def _run_tolerant(go, faults: list, strict: bool):
         unused = [f for f in faults if str(f) in names]
         if not unused:
             raise
+        if strict is None:
+            keep = set(scheduled)
+            given = [f for f in unused if f not in keep]
+            if given:
+                raise RoarError(_UNUSED_MESSAGE.format(names=", ".join(str(f) for f in given))) from None
         return go([f for f in faults if f not in unused]), unused
+
+
+#: the command line's message for faults that matched no call (roar/run.py's run_model)
+_UNUSED_MESSAGE = "--fault {names}: no such call happened in this run (check the name and the call number)"
+
+
+def _check_fault_names(faults: Sequence["Fault"], spec: "AgentSpec", model: "CompiledModel") -> None:
+    """A fault naming no function of the spec (``f`` or ``agent::f``) cannot match a call: refused
+    before the run, with the closest name."""
+    from ..roar.props import did_you_mean
+    known: dict[str, None] = {}
+    pairs = list(spec.functions()) + [(o, n) for o, n in model.functions.values()]
+    for owner, name in pairs:
+        known[name] = None
+        if owner:
+            known[f"{owner}::{name}"] = None
+    for f in faults:
+        if f.name in known:
+            continue
+        names = sorted({n for _o, n in pairs})
+        what = f"its functions: {', '.join(names)}" if names else "it calls no function"
+        raise RoarError(f"--fault {f}: no such call happened in this run: the spec has no function '{f.name}'"
+                        f"{did_you_mean(f.name, known)} ({what})")
 
 
 def _job_name(spec_name: str, request: str) -> str:
@@ -498,6 +557,34 @@ def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple)
     if not out:
         raise RoarError("nothing to check: name at least one property", _caller_pos())
     return out
+
+
+def _never(never: Sequence[str], pos: Pos) -> tuple[list, list]:
+    """``never`` of an exploration of a spec, read as a job file reads ``[invariant] never``: CLF
+    patterns (``(text, pos)``) and predicates in the spec's terms (parsed ``Formula``s)."""
+    from ..roar.props import looks_like_spec, parse_formula
+    if isinstance(never, str):
+        never = [never]
+    clf: list = []
+    spec: list = []
+    for p in never:
+        if not isinstance(p, str) or not p.strip():
+            raise RoarError(f"never is a list of predicates in the spec's terms such as \"arm::holding == true && "
+                            f"gripper::closed == false\" or of CLF patterns such as \"busy P * busy P\", not {p!r}",
+                            pos)
+        if looks_like_spec(p):
+            spec.append(parse_formula(p, _string_pos(pos, p), temporal=False))
+        else:
+            clf.append((p, pos))
+    return clf, spec
+
+
+def _string_pos(pos: Pos, text: str) -> Pos:
+    """Where ``text`` starts on the caller's line (inside its quotes), so that an error inside a
+    predicate points at its column; the line's start if it is not there."""
+    import linecache
+    col = linecache.getline(str(pos.file), pos.line).find(text)
+    return Pos(pos.file, pos.line, col + 1) if col >= 0 else pos
 
 
 def _explore(job) -> "Exploration":
@@ -1286,6 +1373,12 @@ class ClfModel:
         """Explore every interleaving from a start state (docs/checking.md)."""
         from ..verify.jobs import Job, PropertySpec
         props = _properties(properties, never, CLF_PROPERTIES)
+        from ..roar.props import looks_like_spec
+        for p in [never] if isinstance(never, str) else never:
+            if isinstance(p, str) and looks_like_spec(p):
+                raise RoarError(f"never pattern {p!r} is written in the spec's terms: it needs an agent spec "
+                                "(AgentSpec.explore); on a .clf model write CLF patterns such as "
+                                "\"busy P * busy P\"", _caller_pos())
         if fairness not in ("first-argument", "rule", "none"):
             raise RoarError(f"fairness must be 'first-argument', 'rule' or 'none', not {fairness!r}", _caller_pos())
         if backend not in ("auto", "ground", "general"):

@@ -173,8 +173,10 @@ def assert_sequential_achievement(spec: Target, request: str, *, recipes: Sequen
 def assert_invariant(target: Target, request: Optional[str] = None, *, never: Sequence[str] = (),
                      exclusive_writes: bool = False, budget: BudgetLike = None, start: Optional[int] = None,
                      allow_incomplete: bool = False) -> Exploration:
-    """No reachable state matches a ``never`` pattern (CLF facts, docs/checking.md "Invariants");
-    with ``exclusive_writes`` (specs), no variable is written by two live where clauses."""
+    """No reachable state satisfies a ``never`` predicate or matches a ``never`` pattern: on a spec,
+    as a job file's ``[invariant] never``, predicates in the spec's terms (``"cell::rate == 5"``) or
+    CLF patterns; on a .clf model, CLF patterns (docs/checking.md "Invariants"). With
+    ``exclusive_writes`` (specs), no variable is written by two live where clauses."""
     __tracebackhide__ = True
     if isinstance(never, str):
         never = [never]
@@ -203,14 +205,18 @@ def assert_conforms(spec: Target, request: str, scenario: Union[str, Path], *, r
 
 
 def assert_succeeds(spec: Target, request: str, *, seed: int = 0, faults: Sequence[FaultLike] = (),
-                    max_steps: int = 100_000, scenario: Optional[Union[str, Path]] = None) -> RunReport:
+                    max_steps: int = 100_000, scenario: Optional[Union[str, Path]] = None,
+                    strict_faults: Optional[bool] = None) -> RunReport:
     """One run of ``request`` ends in success; otherwise the message is the run's ROAR-level trace
-    (as ``roar-verify run`` prints it) and the path of its JSON Lines trace."""
+    (as ``roar-verify run`` prints it) and the path of its JSON Lines trace. A fault that names no
+    function of the spec, or that matched no call, is a :class:`RoarError` as in
+    :meth:`AgentSpec.run` (``strict_faults=False``: listed in the report's ``unused_faults``)."""
     __tracebackhide__ = True
     t = _target(spec)
     if not isinstance(t, AgentSpec):
         raise RoarError(f"{t.name}: a request runs on an agent spec, not a .clf model")
-    run = t.run(request, seed=seed, faults=faults, max_steps=max_steps, scenario=scenario)
+    run = t.run(request, seed=seed, faults=faults, max_steps=max_steps, scenario=scenario,
+                strict_faults=strict_faults)
     if run.ok:
         return run
     stem = re.sub(r"[^A-Za-z0-9_-]", "_", Path(t.name.strip("<>")).stem) or "spec"

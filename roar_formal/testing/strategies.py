@@ -33,7 +33,7 @@ from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
 from ..errors import RoarError
-from .api import AgentSpec, ClfModel
+from .api import AgentSpec, ClfModel, ScheduledFault
 
 __all__ = ["STATEMENT_KINDS", "statement_kinds", "specs", "requests", "spec_requests", "fault_schedules",
            "paths", "ModelPath", "clf_terms", "clf_programs"]
@@ -351,7 +351,9 @@ def fault_schedules(spec: AgentSpec, *, max_faults: int = 3, max_call: int = 3, 
     """Lists of ``--fault`` values for the functions ``spec`` declares: ``f:K`` (the K-th call
     fails, K up to ``max_call``), with ``permanent`` also ``f`` (every call fails), and with
     ``outcomes`` ``f:K=OUTCOME`` for the outcomes the functional layer declares. Shrinks towards
-    the empty schedule, then one fault of the first call of the first function."""
+    the empty schedule, then one fault of the first call of the first function. The values are
+    :class:`~roar_formal.testing.api.ScheduledFault` strings: a run lists one that matched no call
+    (``f:3`` when f is called twice) in ``unused_faults`` rather than refusing it."""
     counts = Counter(f for _a, f in spec.functions())
     reg = spec.registry() if outcomes else None
     faults: list[str] = []   # every fault the schedule may hold, simplest first (plain strings print well)
@@ -367,7 +369,7 @@ def fault_schedules(spec: AgentSpec, *, max_faults: int = 3, max_call: int = 3, 
             faults += [f"{shown}:{k}={o.name}" for k in range(1, max_call + 1) for o in prim.outcomes]
     if not faults or max_faults == 0:
         return st.just([])
-    return st.lists(st.sampled_from(faults), max_size=max_faults, unique=True)
+    return st.lists(st.sampled_from([ScheduledFault(f) for f in faults]), max_size=max_faults, unique=True)
 
 
 def _default_outcomes():
