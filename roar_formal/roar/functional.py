@@ -346,10 +346,28 @@ def import_module(path):
     sys.modules[spec.name] = mod
     try:
         spec.loader.exec_module(mod)
+    except SyntaxError as exc:   # located in the module: file, line, column
+        sys.modules.pop(spec.name, None)
+        raise RoarError(f"the functional-layer module is not valid Python: {exc.msg}",
+                        Pos(str(path), exc.lineno or 1, exc.offset or 1)) from None
     except Exception as exc:
         sys.modules.pop(spec.name, None)
-        raise RoarError(f"{path}: importing the functional-layer module failed: {type(exc).__name__}: {exc}") from None
+        where = _module_line(exc, path)
+        raise RoarError(f"importing the functional-layer module failed: {type(exc).__name__}: {exc}",
+                        where or Pos(str(path), 1, 1)) from None
     return mod
+
+
+def _module_line(exc: BaseException, path) -> Optional[Pos]:
+    """The line of the module where an exception raised while importing it came from, if any."""
+    from pathlib import Path
+    target = str(Path(path).resolve())
+    tb, found = exc.__traceback__, None
+    while tb is not None:
+        if str(Path(tb.tb_frame.f_code.co_filename).resolve()) == target:
+            found = Pos(str(path), tb.tb_lineno, 1)
+        tb = tb.tb_next
+    return found
 
 
 def _ekey(e: RoarError):

@@ -170,7 +170,13 @@ def test_functional_module_that_raises_on_import_exits_2(capsys, tmp_path, comma
 def test_functional_module_with_a_syntax_error_exits_2(capsys, tmp_path):
     spec = _spec_with_module(tmp_path, "def registry(:\n")
     code, out, err = cli(capsys, "run", spec, "--request", DEMO[1])
-    assert_user_error(code, err, "loco.py", "SyntaxError")
+    assert_user_error(code, err, "loco.py:1:14: the functional-layer module is not valid Python: invalid syntax")
+
+
+def test_functional_module_that_fails_on_import_is_located_at_its_line(capsys, tmp_path):
+    spec = _spec_with_module(tmp_path, "import math\nX = 1\nY = no_such_name + 1\n")
+    code, out, err = cli(capsys, "run", spec, "--request", DEMO[1])
+    assert_user_error(code, err, "loco.py:3:1: importing the functional-layer module failed: NameError")
 
 
 @pytest.mark.parametrize("source,fragment", [
