@@ -318,7 +318,8 @@ def timing_of(value) -> Optional[Timing]:
         raise RoarError(f"wait_timeout is a whole number of milliseconds, at least 1, not {t!r}",
                         value.where[1] if len(value.where) > 1 else None)
     if t is not None and value.mode != "timed":
-        raise RoarError("wait_timeout needs the timed mode (time = \"timed\"): an untimed wait never times out",
+        raise RoarError("wait_timeout needs the timed mode (time = \"timed\" in a job, --time timed on the "
+                        "command line): an untimed wait never times out",
                         value.where[1] if len(value.where) > 1 else None)
     return value if value else None
 
