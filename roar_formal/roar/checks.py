@@ -401,7 +401,8 @@ class _Checker:
             vt = self.var_types.get((me.name, name))
         else:
             self.err("unknown-variable", target.pos,
-                     f"unknown variable '{name}' in agent '{sc.name}'" if me else
+                     f"unknown variable '{name}' in agent '{sc.name}'"
+                     + _did_you_mean(name, [x.name for x in me.vars]) if me else
                      f"unknown variable '{name}'")
         t = self.ty(s.value, sc)
         if not _compat(vt, t):

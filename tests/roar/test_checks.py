@@ -366,3 +366,15 @@ def test_checks_never_crash(body, conds, prefer):
     for e in spec_errors(spec):
         assert isinstance(e, CheckError) and e.pos is not None and e.pos.file == "gen.roar"
         assert e.code and e.message
+
+
+def test_setting_a_misspelt_variable_suggests_the_name(tmp_path):
+    from roar_formal.errors import RoarError as _E
+    from roar_formal.roar.spec import load_spec as _load
+    src = (ROOT / "models" / "faulty" / "survey.roar").read_text(encoding="utf-8").replace(
+        "set done true;", "set dnoe true;", 1)
+    path = tmp_path / "survey.roar"
+    path.write_text(src, encoding="utf-8")
+    with pytest.raises(_E) as err:
+        _load(path)
+    assert "unknown variable 'dnoe' in agent 'mission'; did you mean 'done'?" in err.value.format()
