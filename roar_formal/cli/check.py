@@ -34,7 +34,9 @@ def register(app: typer.Typer) -> None:
         wait_timeout: Optional[int] = typer.Option(None, "--wait-timeout", help="With a spec, timed: a wait with "
                                                    "a period gives up after this many milliseconds."),
         max_states: Optional[int] = typer.Option(None, "--max-states", help="Overrides every job's state bound."),
-        max_seconds: Optional[float] = typer.Option(None, "--max-seconds", help="Overrides every job's time bound."),
+        max_seconds: Optional[float] = typer.Option(
+            None, "--max-seconds",
+            help="Overrides every job's time bound (a spec or model named directly, with no job file: 600 s by default)."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the facts each step consumed and produced."),
         traces: Path = typer.Option(Path("roar-traces"), "--traces",

@@ -779,6 +779,10 @@ def is_model_path(p: Path) -> bool:
     return p.suffix in (".clf", ".roar", ".ability")
 
 
+#: the time bound of a check of a model or spec named on the command line, with no job file
+COMMAND_LINE_SECONDS = 600.0
+
+
 def job_for_model(path: Path, request: Optional[str] = None, properties: Optional[list[str]] = None) -> Job:
     """A job without a job file: ``check MODEL.clf`` or ``check SPEC --request ...`` with the
     default properties (deadlock; for a spec, deadlock, mission-completion and mission-failure)
@@ -808,6 +812,9 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
             raise RoarError("--property livelock on a .clf program needs its progress rules: write them in a "
                             "property file and a job (docs/checking.md)")
     job = Job(path=path, name=path.stem if path.suffix else path.name, model=None if spec else path.resolve())
+    # no job file gives a bound: a default one, so that a large state space ends with "incomplete"
+    # and the budget named instead of running for hours (--max-states, --max-seconds override it)
+    job.budget.max_seconds = COMMAND_LINE_SECONDS
     if spec:
         job.spec = path.resolve()
         job.request = request

@@ -110,3 +110,13 @@ def test_the_readme_deadlock_excerpt_is_what_check_prints(capsys, monkeypatch):
     printed = [line.rstrip() for line in out.splitlines()]
     shown = [line.rstrip() for line in block.splitlines() if line.strip()]
     assert len(shown) >= 5 and [line for line in shown if line not in printed] == []
+
+
+def test_a_spec_named_on_the_command_line_has_a_default_time_bound():
+    """No job file gives a bound: a check of a spec or model named directly stops after
+    COMMAND_LINE_SECONDS (incomplete, exit 4) instead of running for hours; --max-seconds and
+    --max-states override it."""
+    from roar_formal.verify.jobs import COMMAND_LINE_SECONDS, job_for_model
+    job = job_for_model(ROOT / "models" / "conflict.roar", "mission::done == true")
+    assert job.budget.max_seconds == COMMAND_LINE_SECONDS == 600.0 and job.budget.max_states is None
+    assert job_for_model(ROOT / "models" / "philosophers" / "dl.clf").budget.max_seconds == COMMAND_LINE_SECONDS
