@@ -40,7 +40,7 @@ class ReplayResult:
 _PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
 
 
-def _name(value) -> str:
+def trace_name(value) -> str:
     """A step number or rule name read from a trace: as is when plain, else quoted."""
     text = str(value) if isinstance(value, int) and not isinstance(value, bool) else value
     return text if isinstance(text, str) and _PLAIN.fullmatch(text) else shown(value)
@@ -81,14 +81,14 @@ def replay_steps(path, program: Program, start: int, steps: list[dict],
             loop_start = state
         want = (rec.get("consumed", []), rec.get("produced", []))
         if not all(isinstance(w, list) and all(isinstance(x, str) for x in w) for w in want):
-            raise RoarError(f"{path}: step {_name(rec.get('step'))}: \"consumed\" and \"produced\" must be "
+            raise RoarError(f"{path}: step {trace_name(rec.get('step'))}: \"consumed\" and \"produced\" must be "
                             "lists of facts (strings)")
         nxt = None
         for succ in system.successors(state):
             if succ.label != rec.get("rule"):
                 continue
             d = system.describe_step(succ.step)
-            m = _match_renaming(want, (d["consumed"], d["produced"]), names)
+            m = match_renaming(want, (d["consumed"], d["produced"]), names)
             if m is not None:
                 names = m
                 nxt = succ
@@ -96,7 +96,7 @@ def replay_steps(path, program: Program, start: int, steps: list[dict],
         if nxt is None:
             enabled = sorted({s.label for s in system.successors(state)})
             raise RoarError(
-                f"{path}: step {_name(rec.get('step'))} ({_name(rec.get('rule'))}) cannot be replayed: "
+                f"{path}: step {trace_name(rec.get('step'))} ({trace_name(rec.get('rule'))}) cannot be replayed: "
                 "no such enabled step",
                 None, [f"enabled rules here: {', '.join(enabled) or 'none (quiescent)'}",
                        "state: " + "; ".join(show_context(state))])
@@ -117,10 +117,10 @@ def replay_steps(path, program: Program, start: int, steps: list[dict],
     return ReplayResult(len(steps), states, closes, notes, taken_steps, records, system)
 
 
-_FRESH = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")
+FRESH_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")
 
 
-def _match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
+def match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
     """Do the recorded facts equal the replayed ones up to a consistent renaming of fresh
     names (``hint#id``)? Returns the extended renaming, or None."""
     for w, g in zip(want, got):
@@ -130,7 +130,7 @@ def _match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
     used = set(ren.values())
 
     def shape(text: str) -> str:
-        return _FRESH.sub("#", text)
+        return FRESH_NAME.sub("#", text)
 
     def assign(w_lines: list, g_lines: list) -> bool:
         if not w_lines:
@@ -139,7 +139,7 @@ def _match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
         for k, g in enumerate(g_lines):
             if shape(g) != shape(w):
                 continue
-            wn, gn = _FRESH.findall(w), _FRESH.findall(g)
+            wn, gn = FRESH_NAME.findall(w), FRESH_NAME.findall(g)
             added = []
             ok = True
             for a, b in zip(wn, gn):

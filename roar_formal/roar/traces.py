@@ -48,6 +48,9 @@ def run_records(res, spec, request: str, seed: int, faults, functional: Optional
               "spec": str(spec), "request": request, "seed": seed, "faults": list(faults),
               "outcome": res.outcome, "requests": res.requests,
               "fingerprint": spec_fingerprint(Path(spec), res.model.spec, functional)}
+    crashes = getattr(res.model, "crashes", None)
+    if crashes:   # compiled with crashes (--crash: crash_setup); replay recompiles the same model
+        header["crash"], header["max_crashes"] = list(crashes.agents), crashes.bound
     timing = getattr(res.model, "timing", None)
     if timing:   # the timed model (replay recompiles the same one)
         header.update(timing.header())

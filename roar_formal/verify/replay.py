@@ -4,23 +4,28 @@ A trace is data (docs/trust.md): the model comes from the caller (the
 command line's ``--model``), never from a path the trace names, and nothing
 the trace says is imported or executed. The sources' fingerprint recorded in
 the trace must match the model's, unless ``force``. The steps themselves are
-replayed by :func:`roar_formal.explore.replay.replay_steps`.
+replayed by :func:`roar_formal.explore.replay.replay_steps`; a run's trace
+(``roar-verify run --trace``) replays on the abstract model compiled with the
+run's options (crashes, time), each answer of the functional layer as the
+declared outcome rule that gives the same answer (see :class:`_Replayed`).
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
 from ..clf.context import Context
 from ..clf.program import Program
+from ..clf.terms import Const, Root
 from ..clf.query import show_context
 from ..errors import Pos, RoarError
-from ..explore.replay import ReplayResult, replay_steps, start_index
+from ..explore.replay import FRESH_NAME, ReplayResult, match_renaming, replay_steps, start_index, trace_name
 from ..explore.system import ClfSystem, Options
 from .claims import claim_groups, confirm_claim
-from ..roar.compile import CompiledModel, compile_spec
+from ..roar.compile import CRASH_RULES, CompiledModel, compile_spec
 from ..roar.explore import PROGRESS_RULES, RoarSystem, path_narration, roar_final, sequential_pairs
 from ..roar.report import decode_state, step_changes
 from ..roar.functional import functional_module, load_registry
@@ -78,10 +83,35 @@ def load_replay_target(path, header: dict, model, functional=None, force: bool =
     fn = functional_module(model, Path(functional) if functional is not None else None)
     check_fingerprint(path, header, spec_fingerprint(model, spec_ast, fn), force, notes)
     reg = load_registry(fn)
+    if header.get("kind") == RUN_KIND:
+        reg = run_registry(spec_ast, reg)
     # the options the counterexample's model was compiled with, as its header records them
     compiled = compile_spec(spec_ast, request, registry=reg, functional="abstract",
                             crashes=header_crashes(path, header), time=header_timing(path, header))
     return compiled.program(), compiled
+
+
+#: the header's ``kind`` of a run's trace (roar/traces.py)
+RUN_KIND = "roar-run"
+
+
+def run_registry(spec_ast, reg):
+    """The registry a run's trace replays with: ``reg`` without the entries that abstract the
+    read of a task-initialised variable (``agent::var``). A run reads such a variable by running
+    its task (the abstraction is for exploration only), and so does the model it replays on;
+    the primitives keep their declared outcomes."""
+    if reg is None:
+        return None
+    from ..roar.functional import Registry
+    reads = {f"{ag.name}::{var}" for ag in spec_ast.agents for var in ag.task_initialised()}
+    if not reads & set(reg.names()):
+        return reg
+    out = Registry(builtins=False)
+    for name in reg.names():
+        p = reg.get(name)
+        if name not in reads:
+            out.register(name, p.fn, p.outcomes, replace=True, max_failures=p.max_failures, fair=p.fair)
+    return out
 
 
 def header_crashes(path, header: dict):
@@ -94,7 +124,9 @@ def header_crashes(path, header: dict):
             isinstance(bound, bool) or not isinstance(bound, int) or bound < 1:
         raise RoarError(f"{path}: the trace's header records crashes it cannot mean ('crash' is a list of agent "
                         f"names, 'max_crashes' a whole number from 1)", Pos(str(path), 1, 1))
-    return Crashes(tuple(agents), bound) if agents else None
+    # a run's model arms every agent named from the start, and the runner takes each crash at
+    # the step --crash gave (roar/run.py, crash_setup); a check's model decides a crash plan
+    return Crashes(tuple(agents), bound, header.get("kind") == RUN_KIND) if agents else None
 
 
 def header_timing(path, header: dict):
@@ -182,8 +214,13 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
         def make_system(prog: Program, begin: Context) -> ClfSystem:
             return ClfSystem(prog, begin, Options(fairness=groups))
     else:
-        make_system = None
-    res = replay_steps(path, program, start, records, on_step, notes, make_system)
+        def make_system(prog: Program, begin: Context) -> ClfSystem:
+            return ClfSystem(prog, begin, Options())
+    replayed = _Replayed(path, header, records, compiled, on_step)
+    try:
+        res = replay_steps(path, program, start, replayed.steps(), replayed.on_step, notes, replayed.wrap(make_system))
+    except RoarError as exc:
+        raise replayed.explain(exc) from None
     steps = [{"step": r["step"], "loop": r["loop"], "rule": r["rule"], "group": str(r["group"]),
               "events": [], "changes": []} for r in res.records]
     requests: dict = {}
@@ -198,8 +235,287 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
             nar.req_info.items(), key=lambda kv: (len(kv[0]), kv[0]))}
         labels = (nar.labels, nar.req_info)
     decided = confirm_claim(path, header, res, compiled)
+    if decided is None and compiled is not None and header.get("kind") == RUN_KIND:
+        decided = _confirm_run(header, res, labels)
     confirmed, why = decided if decided is not None else _confirm(header, res, compiled)
     return TraceReplay(header, res, compiled, steps, requests, confirmed, why, labels)
+
+
+#: the rule name a run's trace gives the functional layer's answers (roar/run.py: the runner's external step)
+FUNCTIONAL_LAYER = "functional_layer"
+#: facts an abstract outcome rule keeps besides the call and its writes (a ``max_failures`` budget)
+_BUDGET = "fails_left "
+
+
+class _Replayed:
+    """The steps of a trace as :func:`replay_steps` takes them, and what replay says of the one
+    it cannot take.
+
+    A run's trace (``roar-verify run --trace``) records each answer of the functional layer as
+    one external step (rule ``functional_layer``: the Python callable, a ``--fault`` or a
+    declared outcome answered); the model replay rebuilds is the abstract one, where a call is
+    answered by one of its primitive's declared outcome rules. Such a step replays as the
+    outcome rule enabled on that call that produces the same answer (the same result and the
+    same writes; the rule's failure budget, ``max_failures``, taken as the rule takes it); an
+    answer that no declared outcome produces is refused, at its step. Iterating this object
+    yields the steps one at a time: each is read against the state the replay has reached
+    (``on_step`` tells it), before the next is asked for."""
+
+    def __init__(self, path, header: dict, records: list[dict], compiled: Optional[CompiledModel],
+                 on_step: Optional[Callable[[int, dict, Context], None]]):
+        self.path = path
+        self.header = header
+        self.records = records
+        self.compiled = compiled
+        self.user_on_step = on_step
+        self.system = None
+        self.state: Optional[Context] = None   # the state the next step is taken from
+        self.taken = 0                         # steps replayed so far
+        self.current: Optional[dict] = None    # the step being replayed, as given to replay_steps
+        self.opaque: dict[str, str] = {}       # an opaque value of the run -> the model's (see answer)
+
+    def wrap(self, make_system):
+        def make(prog: Program, begin: Context):
+            self.system = make_system(prog, begin)
+            self.state = self.system.initial()
+            return self.system
+        return make
+
+    def on_step(self, i: int, rec: dict, state: Context) -> None:
+        self.taken, self.state = i, state
+        if self.user_on_step is not None:
+            self.user_on_step(i, rec, state)
+
+    def steps(self) -> "_Replayed":
+        return self
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __iter__(self):
+        for k, rec in enumerate(self.records):
+            if self.compiled is not None and rec.get("rule") == FUNCTIONAL_LAYER:
+                if self.taken != k or self.system is None:   # replay_steps takes each step before the next
+                    raise RuntimeError("replay: a functional-layer step read before the steps preceding it")
+                rec = self.answer(rec)
+            elif self.opaque:
+                rec = self._unopaque(rec)
+            self.current = rec
+            yield rec
+
+    def _unopaque(self, rec: dict) -> dict:
+        """``rec`` with the opaque values the run's functional layer made (``vopq K``: a Python
+        object the spec cannot look into) as the model's outcomes made them."""
+        def swap(fact):
+            return _OPAQUE.sub(lambda m: self.opaque.get(m.group(0), m.group(0)), fact) \
+                if isinstance(fact, str) else fact
+        return {**rec, **{k: [swap(f) for f in rec[k]] for k in ("consumed", "produced")
+                          if isinstance(rec.get(k), list)}}
+
+    # ------------------------------------------------------------ the functional layer's answers
+    def answer(self, rec: dict) -> dict:
+        """The functional-layer step ``rec`` as the declared outcome rule that gives its answer."""
+        if not all(isinstance(rec.get(k, []), list) and all(isinstance(x, str) for x in rec.get(k, []))
+                   for k in ("consumed", "produced")):
+            return rec   # replay_steps says what is wrong with it
+        rec = self._unopaque(rec)
+        want = (rec.get("consumed", []), rec.get("produced", []))
+        where = f"{self.path}: step {_step_name(rec)} ({FUNCTIONAL_LAYER}) cannot be replayed"
+        calls = [f for f in want[0] if f.startswith("pending ")]
+        if len(calls) != 1:
+            raise RoarError(f"{where}: an answer of the functional layer consumes one pending call, and this step "
+                            f"consumes {len(calls)}", None, [f"consumed: {'; '.join(want[0]) or 'nothing'}"])
+        call = calls[0]
+        fc = call.split()[1] if len(call.split()) > 1 else ""
+        qual = self._function(fc)
+        outcomes = []   # (successor, its facts without the budget, the budget facts)
+        for succ in self.system.successors(self.state):
+            if not succ.label.startswith("outcome_"):
+                continue
+            d = self.system.describe_step(succ.step)
+            if not any(_shape(f) == _shape(call) for f in d["consumed"] if f.startswith("pending ")):
+                continue   # an outcome of another call
+            kept = tuple([f for f in d[k] if not f.startswith(_BUDGET)] for k in ("consumed", "produced"))
+            budget = tuple([f for f in d[k] if f.startswith(_BUDGET)] for k in ("consumed", "produced"))
+            outcomes.append((succ, kept, budget))
+        for succ, kept, budget in outcomes:
+            # an opaque value the call returns or writes (a Python object: the model's outcome makes
+            # one that stands for any) is the outcome's, here and in the steps after
+            made = _opaque_made(want[1], kept[1], self.opaque)
+            if made is None:
+                continue
+            got = tuple([_OPAQUE.sub(lambda m: made.get(m.group(0), m.group(0)), f) for f in w] for w in want)
+            if _same_facts(got, kept):
+                self.opaque.update(made)
+                return {**rec, "rule": succ.label, "consumed": got[0] + budget[0], "produced": got[1] + budget[1]}
+        answer = [f for f in want[1]]
+        declared = sorted(t.name for t in self.system.program.templates if t.name.startswith(f"outcome_{fc}_"))
+        if not declared:
+            raise RoarError(f"{where}: it answers a call of {qual}, which no declared outcome of this model answers",
+                            None, [f"the call: {call}", *self._context()])
+        if not outcomes:
+            pending = [x for x in show_context(self.state) if x.startswith("pending ")]
+            raise RoarError(f"{where}: the call it answers is not pending here", None,
+                            [f"the call: {call}",
+                             f"pending calls here: {'; '.join(pending) or 'none'}", *self._context()])
+        enabled = {succ.label for succ, _k, _b in outcomes}
+        notes = [f"the call: {call}", f"the recorded answer: {'; '.join(answer) or 'nothing'}",
+                 "the declared outcomes enabled here answer: " + "; ".join(
+                     f"{succ.label}: {', '.join(_renamed(f, kept[0], call) for f in kept[1])}"
+                     for succ, kept, _b in outcomes)]
+        spent = [x for x in declared if x not in enabled]
+        budget = bool(spent) and f"{_BUDGET}{fc} z" in show_context(self.state)
+        if spent:
+            notes.append(f"declared outcomes not enabled here: {', '.join(spent)}"
+                         + (" (the primitive's failure budget, max_failures, is spent: the run failed it more "
+                            "often than the registry assumes)" if budget else ""))
+        notes.append("a run's trace replays on the abstract model, where a primitive answers only with its "
+                     "declared outcomes (the answers check explores)"
+                     + ("" if budget else "; an answer of the Python function that none of them produces is "
+                        "not a step of that model: declare an outcome that produces it"))
+        raise RoarError(f"{where}: the recorded answer of {qual} is none that a declared outcome "
+                        f"{'enabled here ' if budget else ''}produces", None, notes)
+
+    def _function(self, fc: str) -> str:
+        owner, name = (self.compiled.functions.get(fc, (None, None)) if self.compiled is not None else (None, None))
+        if name is None:
+            return repr(fc)
+        return f"'{owner}::{name}'" if owner else f"'{name}'"
+
+    def _context(self) -> list[str]:
+        enabled = sorted({s.label for s in self.system.successors(self.state)})
+        return [f"enabled rules here: {', '.join(enabled) or 'none (quiescent)'}",
+                "state: " + "; ".join(show_context(self.state))]
+
+    # ------------------------------------------------------------ a step replay cannot take
+    def explain(self, exc: RoarError) -> RoarError:
+        """``exc``, or, when the step's rule is enabled but on other facts, an error that says so."""
+        rec = self.current
+        if "no such enabled step" not in exc.message or rec is None or self.system is None or self.state is None:
+            return exc
+        same = [s for s in self.system.successors(self.state) if s.label == rec.get("rule")]
+        if not same:
+            return exc
+        want = (rec.get("consumed", []), rec.get("produced", []))
+        best = None
+        for succ in same:
+            d = self.system.describe_step(succ.step)
+            diff = (_minus(want[0], d["consumed"]), _minus(d["consumed"], want[0]),
+                    _minus(want[1], d["produced"]), _minus(d["produced"], want[1]))
+            size = sum(len(x) for x in diff)
+            if best is None or size < best[0]:
+                best = (size, diff)
+        size, (c_rec, c_here, p_rec, p_here) = best
+        rule = _step_rule(rec)
+        n = f"{len(same)} instance{'s' if len(same) != 1 else ''}"
+        notes = []
+        if size == 0:
+            notes.append("the nearest instance consumes and produces the same facts up to fresh names, but its "
+                         "fresh names do not correspond to those of the steps before it")
+        else:
+            for what, facts in (("consumed in the trace, not by the nearest instance", c_rec),
+                                ("consumed by the nearest instance, not in the trace", c_here),
+                                ("produced in the trace, not by the nearest instance", p_rec),
+                                ("produced by the nearest instance, not in the trace", p_here)):
+                if facts:
+                    notes.append(f"{what}: {'; '.join(facts)}")
+        if self.header.get("crash") is None and any(r.get("rule") in CRASH_RULES for r in self.records):
+            notes.append("the trace takes crash steps, but its header records no crashes ('crash', "
+                         "'max_crashes'), so the model replayed on has none: a trace written without them "
+                         "(a run's, before they were recorded) needs them added to its header")
+        return RoarError(f"{self.path}: step {_step_name(rec)} ({rule}) cannot be replayed: {rule} is enabled here "
+                         f"({n}), but not on the facts the trace records", exc.pos, notes + exc.notes)
+
+
+_OPAQUE = re.compile(r"\(vopq \d+\)")
+_PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
+
+
+def _same_facts(want: tuple, got: tuple) -> bool:
+    """Are the (consumed, produced) facts ``want`` those of ``got``, fresh names aside, under one
+    renaming of them (one to one)? (Which fresh names of the replay the trace's stand for, across
+    the steps, :func:`replay_steps` checks when it takes the step.)"""
+    return match_renaming(want, got, {}) is not None
+
+
+def _opaque_made(recorded: list, produced: list, known: dict) -> Optional[dict]:
+    """The opaque values an answer made, recorded -> the outcome's (facts aligned by their
+    shape with opaque values aside), or None when they cannot correspond (another shape, a
+    recorded value already standing for another)."""
+    def blank(f):
+        return _OPAQUE.sub("(vopq _)", _shape(f))
+    if sorted(map(blank, recorded)) != sorted(map(blank, produced)):
+        return None
+    made: dict = {}
+    for w, g in zip(sorted(recorded, key=blank), sorted(produced, key=blank)):
+        for a, b in zip(_OPAQUE.findall(w), _OPAQUE.findall(g)):
+            if known.get(a, made.get(a, b)) != b:
+                return None
+            if a not in known:
+                made[a] = b
+    return made
+
+
+def _renamed(fact: str, consumed: list, call: str) -> str:
+    """``fact``, produced by an outcome rule that consumed ``consumed``, with the fresh names of
+    its pending call as the trace's ``call`` names them."""
+    mine = next((f for f in consumed if f.startswith("pending ") and _shape(f) == _shape(call)), None)
+    if mine is None:
+        return fact
+    ren = dict(zip(FRESH_NAME.findall(mine), FRESH_NAME.findall(call)))
+    return FRESH_NAME.sub(lambda m: ren.get(m.group(0), m.group(0)), fact)
+
+
+def _shape(fact: str) -> str:
+    return FRESH_NAME.sub("#", fact)
+
+
+def _minus(a: list, b: list) -> list:
+    """The facts of ``a`` not in ``b`` (a multiset difference, fresh names aside)."""
+    left = [_shape(x) for x in b]
+    out = []
+    for x in a:
+        if _shape(x) in left:
+            left.remove(_shape(x))
+        else:
+            out.append(x)
+    return out
+
+
+def _step_name(rec: dict) -> str:
+    return trace_name(rec.get("step"))
+
+
+def _step_rule(rec: dict) -> str:
+    return trace_name(rec.get("rule"))
+
+
+def _confirm_run(header: dict, res: ReplayResult, labels: tuple) -> Optional[tuple[bool, str]]:
+    """A run's trace claims how its request ended (``outcome``): does the replay end so too?"""
+    from ..roar import vocabulary as V
+    from ..roar.run import STATE_NAMES
+    recorded = header.get("outcome")
+    if not isinstance(recorded, str) or not labels:
+        return None
+    ended = "unfinished"
+    for _mode, f, _n in res.states[-1].facts():
+        if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.RS:
+            x = V.rs(f)
+            if labels[0].get(x.request) == "R0":
+                ended = STATE_NAMES.get(x.state.head.name, "?")
+    if ended != recorded:
+        return False, (f"the run's trace records that its request ended {_ending(recorded)}, but on this model it "
+                       f"ends {_ending(ended)}")
+    request = header.get("request")
+    return True, (f"the request{f' {request}' if isinstance(request, str) else ''} ends {_ending(ended)}, "
+                  f"as the run recorded")
+
+
+def _ending(outcome: str) -> str:
+    from ..roar.run import STATE_NAMES
+    if outcome == "unfinished":
+        return outcome
+    return f"in {outcome if outcome in STATE_NAMES.values() else shown(outcome)}"
 
 
 def _confirm(header: dict, res: ReplayResult, compiled: Optional[CompiledModel]) -> tuple[Optional[bool], str]:

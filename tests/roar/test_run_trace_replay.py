@@ -1,0 +1,212 @@
+"""A run's trace (``roar-verify run --trace``) replays on the model: each answer of the functional
+layer as the declared outcome rule that gives it, a run with crashes on the model compiled with
+them, a timed run on the timed model; an answer no declared outcome gives is refused at its step
+(verify/replay.py)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from roar_formal.errors import RoarError
+from roar_formal.testing import load_spec, replay
+from roar_formal.verify.replay import replay_trace
+
+from repo import ROOT
+
+MODELS = ROOT / "models"
+CONFLICT = (MODELS / "conflict.roar", "mission::done == true")
+CAMERA = (MODELS / "faulty" / "camera_bounded.roar", "camera::taken == true")
+MUTUAL = (MODELS / "faulty" / "mutual_make_fixed.roar", "arm::started == true")
+TIMED = (ROOT / "tests" / "roar" / "data" / "timed_same.roar", "door::open == true")
+ABSTRACT_READ = (ROOT / "tests" / "roar" / "data" / "abstract_read.roar", "loco::arrived == true")
+
+
+def _records(path: Path) -> tuple[dict, list[dict]]:
+    lines = path.read_text().splitlines()
+    return json.loads(lines[0]), [json.loads(x) for x in lines[1:]]
+
+
+def _write(path: Path, header: dict, records: list[dict]) -> None:
+    path.write_text("\n".join(json.dumps(x) for x in [header, *records]) + "\n")
+
+
+def _cli_run_and_replay(roar_cli, tmp_path, case, *options):
+    spec, request = case
+    trace = tmp_path / "run.jsonl"
+    code, out, err = roar_cli("run", spec, "-r", request, "--trace", trace, *options)
+    assert code in (0, 1) and "trace written to" in out, err
+    code, out, err = roar_cli("replay", trace, "--model", spec)
+    assert code == 0, err
+    header, records = _records(trace)
+    assert f"replayed {len(records)} steps: every step is a step of the model" in out
+    assert f"confirmed: the request {request} ends in {header['outcome']}, as the run recorded" in out
+    return trace, header, records, out
+
+
+def test_run_with_primitives_replays_each_answer_as_its_outcome(roar_cli, tmp_path):
+    trace, header, records, out = _cli_run_and_replay(roar_cli, tmp_path, CONFLICT)
+    answered = [r["step"] for r in records if r["rule"] == "functional_layer"]
+    assert len(answered) == 2 and header["outcome"] == "success"
+    rep = replay(trace, CONFLICT[0])   # the library: the same replay
+    assert rep.steps == len(records) and rep.confirmed is True
+    back = replay_trace(trace, CONFLICT[0])
+    assert [back.steps[i - 1]["rule"] for i in answered] == ["outcome_f_ptu_turn_to_turned"] * 2
+    # the narration reads the outcome steps as the run's: the primitive ends as it did
+    assert "turn_to(30) = true" in out and "turn_to(120) = true" in out
+
+
+def test_run_with_a_forced_fault_replays(roar_cli, tmp_path):
+    trace, header, records, out = _cli_run_and_replay(roar_cli, tmp_path, CAMERA, "--fault", "snap:1")
+    assert header["faults"] == ["snap:1"]
+    back = replay_trace(trace, CAMERA[0])
+    rules = [back.steps[r["step"] - 1]["rule"] for r in records if r["rule"] == "functional_layer"]
+    assert rules[0] == "outcome_f_camera_snap_blurred" and "outcome_f_camera_snap_sharp" in rules
+    # and through the library, from a run the library made
+    spec = load_spec(CONFLICT[0])
+    report = spec.run(CONFLICT[1], faults=["turn_to:1"])
+    path = report.save_trace(tmp_path / "lib.jsonl")
+    rep = replay(path, CONFLICT[0])
+    assert rep.confirmed is True
+    assert replay_trace(path, CONFLICT[0]).steps[33]["rule"] == "outcome_f_ptu_turn_to_blocked"
+
+
+def test_run_with_a_crash_records_it_and_replays(roar_cli, tmp_path):
+    trace, header, records, out = _cli_run_and_replay(roar_cli, tmp_path, MUTUAL, "--crash", "door@10")
+    assert header["crash"] == ["door"] and header["max_crashes"] == 1
+    assert any(r["rule"] == "crash" for r in records) and header["outcome"] == "failure"
+    back = replay_trace(trace, MUTUAL[0])
+    assert back.compiled.crashes.agents == ("door",) and back.compiled.crashes.scheduled
+    rep = replay(trace, MUTUAL[0])
+    assert rep.confirmed is True and rep.steps == len(records)
+
+
+def test_a_crash_the_header_does_not_record_says_the_instance_differs(roar_cli, tmp_path):
+    trace, header, records, _out = _cli_run_and_replay(roar_cli, tmp_path, MUTUAL, "--crash", "door@10")
+    del header["crash"], header["max_crashes"]
+    old = tmp_path / "old.jsonl"
+    _write(old, header, records)
+    with pytest.raises(RoarError) as err:
+        replay(old, MUTUAL[0])
+    text = err.value.format()
+    assert "step 9 (st1_make) cannot be replayed: st1_make is enabled here (1 instance), but not on the facts" in text
+    assert "no such enabled step" not in text
+    assert "consumed in the trace, not by the nearest instance: cep a_door" in text
+    assert "its header records no crashes" in text
+
+
+def test_timed_run_replays(roar_cli, tmp_path):
+    trace, header, records, out = _cli_run_and_replay(roar_cli, tmp_path, TIMED, "--time", "timed")
+    assert header["time"] == "timed"
+    back = replay_trace(trace, TIMED[0])
+    assert back.compiled.timing and back.confirmed is True
+
+
+def test_a_read_abstracted_for_exploration_runs_its_task_on_replay(roar_cli, tmp_path):
+    """The registry's ``agent::var`` entry abstracts a read for exploration only: a run runs the
+    task, and the model a run's trace replays on does too."""
+    _trace, _header, records, _out = _cli_run_and_replay(roar_cli, tmp_path, ABSTRACT_READ)
+    assert not any(r["rule"] == "functional_layer" for r in records)
+
+
+def _tampered(tmp_path) -> tuple[Path, int]:
+    spec = load_spec(CONFLICT[0])
+    path = spec.run(CONFLICT[1]).save_trace(tmp_path / "run.jsonl")
+    header, records = _records(path)
+    k = next(i for i, r in enumerate(records) if r["rule"] == "functional_layer")
+    records[k]["produced"] = [re.sub(r"^return \(vbool tt\)", "return (vnum 7)", f) for f in records[k]["produced"]]
+    assert records[k]["produced"][0].startswith("return (vnum 7) d#")
+    bad = tmp_path / "tampered.jsonl"
+    _write(bad, header, records)
+    return bad, records[k]["step"]
+
+
+def test_an_answer_no_outcome_gives_is_refused_at_its_step(roar_cli, tmp_path):
+    bad, n = _tampered(tmp_path)
+    with pytest.raises(RoarError) as err:
+        replay(bad, CONFLICT[0])
+    text = err.value.format()
+    assert f"step {n} (functional_layer) cannot be replayed: the recorded answer of 'ptu::turn_to' is none " \
+           "that a declared outcome produces" in text
+    assert "the recorded answer: return (vnum 7) d#" in text
+    assert "outcome_f_ptu_turn_to_turned: return (vbool tt)" in text
+    assert "outcome_f_ptu_turn_to_blocked: return (vbool ff)" in text
+    code, out, err_text = roar_cli("replay", bad, "--model", CONFLICT[0])
+    assert code == 2 and f"step {n} (functional_layer) cannot be replayed" in err_text
+
+
+def test_an_answer_beyond_the_failure_budget_is_refused(tmp_path):
+    shutil.copy(MODELS / "faulty" / "retry_forever.roar", tmp_path / "grip.roar")
+    (tmp_path / "grip.py").write_text(
+        "from roar_formal.roar.functional import Outcome, Registry\n\n"
+        "def registry():\n    reg = Registry()\n"
+        "    reg.register('grip', lambda: True, outcomes=[Outcome('closed', True), Outcome('slipped', False)],"
+        " max_failures=1)\n    return reg\n")
+    spec = load_spec(tmp_path / "grip.roar")
+    ok = spec.run("hand::holding == true", faults=["grip:1"]).save_trace(tmp_path / "one.jsonl")
+    assert replay(ok, tmp_path / "grip.roar").confirmed is True   # one failure: within the budget
+    two = spec.run("hand::holding == true", faults=["grip:1", "grip:2"]).save_trace(tmp_path / "two.jsonl")
+    with pytest.raises(RoarError) as err:
+        replay(two, tmp_path / "grip.roar")
+    text = err.value.format()
+    assert "(functional_layer) cannot be replayed: the recorded answer of 'hand::grip' is none that a declared " \
+           "outcome enabled here produces" in text
+    assert "failure budget, max_failures, is spent" in text
+
+
+def test_timed_run_with_primitives_a_fault_and_a_crash_replays(roar_cli, tmp_path):
+    _trace, header, records, _out = _cli_run_and_replay(roar_cli, tmp_path, CONFLICT, "--time", "timed",
+                                                        "--fault", "turn_to:2", "--crash", "ptu@40")
+    assert header["time"] == "timed" and header["crash"] == ["ptu"]
+    assert {"functional_layer", "crash", "back"} <= {r["rule"] for r in records}
+
+
+def test_an_opaque_value_of_the_run_stands_as_the_outcomes(tmp_path):
+    """A Python object a primitive returns (an opaque type: the spec cannot look into it) is the
+    run's ``vopq K``; the declared outcome makes one of its own, which stands for any: the run's
+    replays as the outcome's, in the steps that pass it on as well."""
+    (tmp_path / "cam.roar").write_text(CAM_SPEC)
+    (tmp_path / "cam.py").write_text(
+        "from roar_formal.roar.functional import Outcome, Registry\n\n"
+        "def registry():\n    reg = Registry()\n"
+        "    reg.register('snap', lambda: object(), outcomes=[Outcome('image', True)])\n"
+        "    reg.register('store', lambda img: True, outcomes=[Outcome('stored', True), Outcome('full', False)])\n"
+        "    return reg\n")
+    path = load_spec(tmp_path / "cam.roar").run("cam::done == true").save_trace(tmp_path / "run.jsonl")
+    assert "(vopq 1)" in path.read_text()
+    rep = replay(path, tmp_path / "cam.roar")
+    assert rep.confirmed is True
+
+
+CAM_SPEC = """cam = ability {
+  context = {
+    { }
+    { bool done = false; img last; }
+    { }
+  }
+  export = {
+    { img = opaquetype; }
+    { img snap(); bool store(img); }
+    { }
+  }
+  tasks = {
+    shoot = task {
+      pre = { }
+      post = { {done == true} }
+      recipes = {
+        once = recipe {
+          body = {
+            set last snap();
+            assert(store(last));
+            set done true;
+          }
+        }
+      }
+    }
+  }
+}
+"""
