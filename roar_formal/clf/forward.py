@@ -396,6 +396,8 @@ def _search(plan, left, done, b, consumed, trail, ctx, tpl, back, prover, out, f
         items = items[first:] + items[:first]
     stop = False
     if lin_only:
+        # (the loop below, specialised: one mode and no per-mode counts; the matching of the
+        # arguments is repeated inline rather than called, as this is the explorer's hottest loop)
         for t in items:
             targs = t.args
             if len(targs) != arity:
