@@ -1116,7 +1116,8 @@ class Exploration:
     def lines(self, verbose: bool = False) -> Lines:
         """The job as ``roar-verify check`` prints it: ``ok`` (or ``UNEXPECTED``), the job's name
         and statistics, then :meth:`verdict_lines`."""
-        head = ("ok", "green") if self.ok else ("UNEXPECTED", "red")
+        # (a job with no violation whose search ran out of budget is not "ok": it has no verdict)
+        head = ("UNEXPECTED", "red") if not self.ok else ("incomplete", "yellow") if self.incomplete else ("ok", "green")
         out = Lines().add(head, " ", (self.name, "bold"), f"  {self._stats()}", wrap=True)
         return out.extend(self.verdict_lines(verbose))
 

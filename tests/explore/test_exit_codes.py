@@ -120,3 +120,13 @@ def test_a_spec_named_on_the_command_line_has_a_default_time_bound():
     job = job_for_model(ROOT / "models" / "conflict.roar", "mission::done == true")
     assert job.budget.max_seconds == COMMAND_LINE_SECONDS == 600.0 and job.budget.max_states is None
     assert job_for_model(ROOT / "models" / "philosophers" / "dl.clf").budget.max_seconds == COMMAND_LINE_SECONDS
+
+
+def test_an_incomplete_job_is_not_headed_ok(roar_cli):
+    """A job with no violation whose search ran out of budget has no verdict: its header says
+    "incomplete", not "ok", and the exit status is 4."""
+    code, out, err = roar_cli("check", ROOT / "models" / "conflict.roar", "-r", "mission::done == true",
+                              "--max-states", "200", "--no-traces")
+    assert code == 4, (out, err)
+    first = next(line for line in out.splitlines() if "conflict" in line and "states" in line)
+    assert first.startswith("incomplete conflict"), out
