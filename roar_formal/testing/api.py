@@ -784,10 +784,14 @@ class RunReport:
                 out.add(f"  warning: call {c.n} {c.function}({', '.join(map(str, c.args))}) at t = {c.t_end:.2f} s "
                         f"returned {c.result.as_json()}, which no declared outcome covers", style="yellow")
         else:
-            end = "quiescent" if self.quiescent else f"stopped after {self.max_steps} steps"
+            end = ("quiescent" if self.quiescent else
+                   f"stopped at the bound of {self.max_steps} steps, the functional layer's answers included")
             out.add((f"request {self.outcome}", style), f" after {self.clf_steps} CLF steps ({end})", wrap=True)
             for line in self.error_context:
                 out.add(f"  error context: {line}", wrap=True)
+            if self.outcome == "failure" and not self.error_context:   # (as the explorer says it)
+                from ..roar.props import NO_TASK
+                out.add(f"  error context: {NO_TASK}", wrap=True)
         if self.unused_faults:
             out.add(f"  faults that matched no call: {', '.join(self.unused_faults)}", style="yellow")
         return out

@@ -114,7 +114,8 @@ def test_a_run_that_does_not_finish_exits_1(capsys):
     code, out, err = run_cli(capsys, DEMO, "--max-steps", "5")
     assert code == 1, err
     m = RESULT_LINE.search(out)
-    assert m[1] != "success" and m[2] == "5" and m[3] == "stopped after 5 steps"
+    assert m[1] != "success" and m[2] == "5"
+    assert m[3] == "stopped at the bound of 5 steps, the functional layer's answers included"
 
 
 def test_unknown_variable_in_the_request_exits_2_located(capsys):
@@ -385,3 +386,11 @@ def test_compile_errors_are_located(capsys, tmp_path):
     assert out == ""
     code, out, err = cli(capsys, "compile", DEMO[0], "--request", DEMO[1], "-o", tmp_path)
     assert_user_error(code, err, "cannot write")
+
+
+def test_a_request_no_task_can_handle_says_so(capsys):
+    """Its error context is empty (the logic layer tried nothing): the run says why, in the words
+    the explorer's verdicts use."""
+    code, out, err = run_cli(capsys, (MODELS / "faulty" / "aim.roar", "arm::pos == 5"))
+    assert code == 1, err
+    assert "  error context: empty: no task of the target agent can handle it (nothing was tried)" in out.splitlines()
