@@ -525,26 +525,37 @@ def replay(base, steps) -> "Context":
         rules, inert, open_ = tuple(base.rules.values()), tuple(base.inert), tuple(base.open)
     for step in steps:
         for mode, t in step.consumed:
-            if mode == LIN:
-                n = lin[t] - 1
-                if n:
-                    lin[t] = n
-                else:
-                    del lin[t]
-            elif mode == AFF:
-                n = aff[t] - 1
-                if n:
-                    aff[t] = n
-                else:
-                    del aff[t]
+            take_count(lin, aff, mode, t)
         for mode, t in step.produced:
-            if mode == LIN:
-                lin[t] = lin.get(t, 0) + 1
-            elif mode == AFF:
-                aff[t] = aff.get(t, 0) + 1
-            elif t not in pers:
-                pers[t] = None
+            add_count(lin, aff, pers, mode, t)
     return _rebuild(lin, aff, pers, rules, inert, open_, base.implicit)
+
+
+def take_count(lin: dict, aff: dict, mode, t) -> None:
+    """One copy of fact ``t`` fewer in the counts (as :meth:`Context.remove_fact`; persistent
+    facts stay): the count tables a successor is planned or a state rebuilt on."""
+    if mode == LIN:
+        n = lin[t] - 1
+        if n:
+            lin[t] = n
+        else:
+            del lin[t]
+    elif mode == AFF:
+        n = aff[t] - 1
+        if n:
+            aff[t] = n
+        else:
+            del aff[t]
+
+
+def add_count(lin: dict, aff: dict, pers: dict, mode, t) -> None:
+    """One copy of fact ``t`` more in the counts (as :meth:`Context.add_fact`)."""
+    if mode == LIN:
+        lin[t] = lin.get(t, 0) + 1
+    elif mode == AFF:
+        aff[t] = aff.get(t, 0) + 1
+    elif t not in pers:
+        pers[t] = None
 
 
 def _counts(facts: tuple) -> dict:

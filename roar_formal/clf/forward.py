@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Iterator, Optional
 
 from .builtins import BUILTINS
-from .context import Context, CtxRule
+from .context import Context, CtxRule, add_count, take_count
 from .rules import AFF, LIN, PERS, Template, positive_parts
 from .terms import (BVar, Const, EVar, Lam, Lit, Meta, Node, Param, Root, Top, apply, subst, zonk, map_bvars, bvar,
                     next_param_id, skip_param_ids)
@@ -1431,19 +1431,8 @@ def plan_successor(ctx: Context, choice: Choice) -> Optional[tuple[FactsView, St
     aff = ctx.aff.copy()
     pers = ctx.pers.copy()
     consumed = list(choice.consumed)
-    for mode, t in consumed:   # as Context.remove_fact
-        if mode == LIN:
-            n = lin[t] - 1
-            if n:
-                lin[t] = n
-            else:
-                del lin[t]
-        elif mode == AFF:
-            n = aff[t] - 1
-            if n:
-                aff[t] = n
-            else:
-                del aff[t]
+    for mode, t in consumed:
+        take_count(lin, aff, mode, t)
     b = list(choice.bindings)
     produced = []
     for act in tpl.head:
@@ -1452,12 +1441,7 @@ def plan_successor(ctx: Context, choice: Choice) -> Optional[tuple[FactsView, St
             continue
         mode = act[1]
         t = inst(act[2], b)
-        if mode == LIN:   # as Context.add_fact
-            lin[t] = lin.get(t, 0) + 1
-        elif mode == AFF:
-            aff[t] = aff.get(t, 0) + 1
-        elif t not in pers:
-            pers[t] = None
+        add_count(lin, aff, pers, mode, t)
         produced.append((mode, t))
     step = Step(tpl.name, tpl, tuple(b), consumed, None, produced)
     return FactsView(lin, aff, pers, ctx.rules, ctx.inert, ctx.open), step
