@@ -35,13 +35,16 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Optional, Union
 
-from ..clf.terms import format_number, format_string
+from ..clf import surface as S
+from ..clf.build import (BUILT, Comment, Rule, args_of, backward, decl, exec_, fact, format_items, format_term,
+                         head_of, number, q, query, string, tensor)
+from ..clf.terms import format_number
 from ..errors import Pos, RoarError, UnsupportedError
 from . import ast as a
 from .checks import CheckedSpec, typed_request
 from .spec import checked_spec
 from ..clf.program import Program
-from .framework import extend_framework, extend_signature, framework_text, with_framework
+from .framework import extend_framework, extend_signature, framework_text, parsed_part, with_framework
 from .functional import DEFAULT_OUTCOMES, Outcome, Registry
 from .incompatible import incompatible_tasks
 from .pretty import format_expr, format_stmt
@@ -50,14 +53,21 @@ __all__ = ["compile_spec", "CompiledModel", "Site", "Crashes", "CRASH_RULES", "T
 
 _OPS = {"==": "o_eq", "!=": "o_ne", "<": "o_lt", "<=": "o_le", ">": "o_gt", ">=": "o_ge",
         "+": "o_add", "-": "o_sub", "*": "o_mul", "&&": "o_and", "||": "o_or"}
+#: a recipe's pre-condition check reads its request's handler (the error context a hole: EC or EC1)
+HS_CHECK = "hs R (h_rchk T P Cs Sc Rc) {} F Pl W"
+#: a timed re-check of a held ensure is due (at tick Dk, its timer taken off the list)
+TIMER_DUE = ("clock Dk", "tmrs Lk", "!tm_rm Dk Lk Lk1")
+#: ... and a logic activation its request's handler
+HS_LOGIC = "hs R (h_lq I) {} F Pl W"
 #: depth budget of the logic layer's proof search (8.2: limit)
 PROOF_BUDGET = 4
 
 
-def nat(k: int) -> str:
-    out = "z"
+def nat(k: int) -> S.Expr:
+    """``k`` as a unary natural (``s (s z)``)."""
+    out = q("z")
     for _ in range(k):
-        out = f"(s {out})"
+        out = q("s {}", out)
     return out
 
 
@@ -69,9 +79,34 @@ def num_lit(x) -> str:
     return text
 
 
-def str_lit(s: str) -> str:
-    """A string as a CLF literal: the engine's own printing, which its lexer reads back."""
-    return format_string(s)
+def num_tree(x) -> S.Expr:
+    """A number as a literal of the model: exact, and only one with a decimal form (the printed
+    model must read back as itself)."""
+    num_lit(x)
+    return number(Fraction(repr(x)) if isinstance(x, float) else Fraction(x))
+
+
+def vlist(items: list) -> S.Expr:
+    """A list value ``vcons X1 (... vnil)``."""
+    out = q("vnil")
+    for x in reversed(items):
+        out = q("vcons {} {}", x, out)
+    return out
+
+
+def code_list(sites: list, tail="cnil") -> S.Expr:
+    """A recipe's code ``ccons S1 (... cnil)`` (or ending in ``tail``)."""
+    out = q("{}", tail)
+    for x in reversed(sites):
+        out = q("ccons {} {}", x, out)
+    return out
+
+
+def key_text(e: S.Expr) -> str:
+    """A term's text as the model prints it in argument position (parenthesised when applied):
+    the order of predicate keys (the ``cands_i`` tables are numbered in it)."""
+    text = format_term(e)
+    return f"({text})" if isinstance(e, (S.App, S.Bang)) else text
 
 
 #: the crash rules (CRASH_RULES_TEXT) the scheduler of a run never chooses: the runner takes them
@@ -386,7 +421,8 @@ class CompiledModel:
     field_types: dict[str, dict[str, str]] = field(default_factory=dict)
     functional: str = "abstract"
     where_cells: dict[str, list[str]] = field(default_factory=dict)      # cst -> cells its where clause writes
-    spec_text: str = ""              # the generated declarations alone (added to the framework's signature)
+    spec_text: str = ""              # the generated declarations alone, printed (for people)
+    items: tuple = ()                # the generated declarations as syntax trees (what extends the framework)
     call_sites: dict[str, list] = field(default_factory=dict)   # function const -> positions of its calls
     candidates: dict[str, list] = field(default_factory=dict)   # cst -> (agent, task) the logic layer proved
     incompatible: dict[tuple[str, str], list[str]] = field(default_factory=dict)  # (agent, task) -> tasks it masks (4.3)
@@ -408,7 +444,7 @@ class CompiledModel:
     def program(self):
         """The CLF program (cached)."""
         if getattr(self, "_program", None) is None:
-            self._program = with_framework(self.spec_text, "<compiled model>")
+            self._program = with_framework([x for x in self.items if not isinstance(x, Comment)], "<compiled model>")
         return self._program
 
 
@@ -428,6 +464,14 @@ _NO_CALL = {
     None: "an expression the logic layer reads symbolically (the logic layer evaluates calls only in task "
           "pre-conditions)",
 }
+
+
+def pushed_env(n: int) -> S.Expr:
+    """The locals ``E`` with ``n`` values pushed on top (``vcons Hn (... (vcons H1 E))``)."""
+    pat = q("E")
+    for i in range(n):
+        pat = q("vcons {} {}", f"H{i + 1}", pat)
+    return pat
 
 
 class _Ctx:
@@ -455,10 +499,10 @@ class _Ctx:
         self.logic: dict[str, str] = {}    # logic variables of a domain rule -> CLF variables (pexps)
         self.purpose: Optional[str] = None  # what a snapshot expression is (for the reason of a refusal)
 
-    def var(self, cell: str) -> str:
+    def var(self, cell: str) -> S.Expr:
         if self.snapshot:
-            return f"(pc {cell})"
-        return f"(pl {self.meta(cell)})"
+            return q("pc {}", cell)
+        return q("pl {}", self.meta(cell))
 
     def meta(self, cell: str) -> str:
         """The metavariable the statement's rule reads ``cell`` into."""
@@ -474,12 +518,9 @@ class _Ctx:
         c.slots = self.slots
         return c
 
-    def envpat(self) -> str:
+    def envpat(self) -> S.Expr:
         """The locals with the values hoisted for this statement on top (popped by its rule)."""
-        pat = "E"
-        for i in range(self.pushed):
-            pat = f"(vcons H{i + 1} {pat})"
-        return pat
+        return pushed_env(self.pushed)
 
 
 class _Compiler:
@@ -515,7 +556,7 @@ class _Compiler:
         self.checked = checked   # the types the static checks found (the compiler re-checks nothing)
         self.registry = registry
         self.functional = functional
-        self.out: list[str] = []
+        self.out: list = []   # the model's items (syntax trees; comments for the printed model)
         self.model = CompiledModel(spec, "", "", functional=functional)
         self.n_sites = 0
         self.cst_by_key: dict[tuple[str, str], str] = {}
@@ -530,7 +571,7 @@ class _Compiler:
         # logic layer, 4.3); None once two sends of it disagree (then it has none)
         self.where_hyps: dict[str, Optional[tuple[str, ...]]] = {}
         self.hyp_keys: dict[str, tuple[str, tuple[str, ...]]] = {}   # pwhere key -> (predicate, hypotheses)
-        self.rules: list[str] = []
+        self.rules: list[Rule] = []
         self.pending_fns: dict[str, tuple[Optional[str], str, str]] = {}
 
     # ------------------------------------------------------------ names
@@ -554,7 +595,7 @@ class _Compiler:
         self.n_sites += 1
         c = f"pp{self.n_sites}_{kind.replace('-', '_')}"   # the rule of the site is st<n>_<kind>
         self.model.sites[c] = Site(c, kind, ag.name, task, recipe, pos, text, **kw)
-        self.out.append(f"{c} : site.")
+        self.out.append(decl(c, "site"))
         return c
 
     def sites_by_number(self) -> dict[str, str]:
@@ -563,41 +604,33 @@ class _Compiler:
         return {c.split("_", 1)[0]: c for c in self.model.sites}
 
     # ------------------------------------------------------------ values
-    def default(self, ty: Optional[str]) -> str:
+    def default(self, ty: Optional[str]) -> S.Expr:
         if ty in ("int", "double"):
-            return "(vnum 0)"
+            return q("vnum 0")
         if ty == "bool":
-            return "(vbool ff)"
+            return q("vbool ff")
         if ty in ("string", "identifier") or ty is None:
-            return '(vstr "")'
+            return q("vstr {}", string(""))
         fields = self.model.structs.get(ty)
         if fields is not None:
-            return "(vrec " + self._list([self.default(self.field_types[ty][f]) for f in fields]) + ")"
-        return "(vopq 0)"
+            return q("vrec {}", vlist([self.default(self.field_types[ty][f]) for f in fields]))
+        return q("vopq 0")
 
-    def value(self, v, ty: Optional[str]) -> str:
+    def value(self, v, ty: Optional[str]) -> S.Expr:
         """A Python value as a CLF value term (for initial values and outcomes)."""
         if isinstance(v, _Opaque):
-            return f"(vopq {v.handle})"
+            return q("vopq {}", v.handle)
         if isinstance(v, bool):
-            return "(vbool tt)" if v else "(vbool ff)"
+            return q("vbool tt") if v else q("vbool ff")
         if isinstance(v, (int, float, Fraction)):
-            return f"(vnum {num_lit(v)})"
+            return q("vnum {}", num_tree(v))
         if isinstance(v, str):
-            return f"(vstr {str_lit(v)})"
+            return q("vstr {}", string(v))
         if isinstance(v, (tuple, list)):
-            return "(vrec " + self._list([self.value(x, None) for x in v]) + ")"
+            return q("vrec {}", vlist([self.value(x, None) for x in v]))
         if isinstance(v, dict) and ty in self.model.structs:
-            return "(vrec " + self._list([self.value(v[f], self.field_types[ty][f])
-                                          for f in self.model.structs[ty]]) + ")"
+            return q("vrec {}", vlist([self.value(v[f], self.field_types[ty][f]) for f in self.model.structs[ty]]))
         raise RoarError(f"cannot represent the value {v!r} in the model")
-
-    @staticmethod
-    def _list(items: list[str]) -> str:
-        out = "vnil"
-        for x in reversed(items):
-            out = f"(vcons {x} {out})"
-        return out
 
     # ------------------------------------------------------------ expressions
     def ty(self, e: a.Expr, cx: _Ctx) -> Optional[str]:
@@ -636,11 +669,11 @@ class _Compiler:
         run_c = self.task_run_cst(owner, task)
         s = self.site("run-task", cx.agent, cx.task, cx.recipe, pos, f"read {owner.name}::{var} (runs {task})")
         stamp_p, stamp_o, failed = self.stamp(owner.name)
-        self.rules.append(
-            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go -o act I R0 T0 Rc0 N{stamp_p}\n"
-            f"  -o {{Exists r. ctl I (m_make r) C E * rstat I go * act I R0 T0 Rc0 (s N) * owns I r ff\n"
-            f"      * rq r a_{owner.name} {run_c} I (k_task {tc}) * rs r s_pending * ppz r ff\n"
-            f"      * hs r (h_tasks (vcons (vtsk {tc}) vnil)) vnil {failed} vnil vnone{stamp_o}}}.")
+        self.rules.append(Rule(
+            s, [q("ctl I m_run (ccons {} C) E", s), q("rstat I go"), q("act I R0 T0 Rc0 N"), *stamp_p],
+            [q("ctl I (m_make r) C E"), q("rstat I go"), q("act I R0 T0 Rc0 (s N)"), q("owns I r ff"),
+             q("rq r {} {} I (k_task {})", f"a_{owner.name}", run_c, tc), q("rs r s_pending"), q("ppz r ff"),
+             q("hs r (h_tasks (vcons (vtsk {}) vnil)) vnil {} vnil vnone", tc, failed), *stamp_o], fresh=("r",)))
         cx.hoisted.append(s)
         self.sent_runs.setdefault((cx.agent.name, cx.task, cx.recipe), set()).add(run_c)
 
@@ -666,9 +699,9 @@ class _Compiler:
         s = self.site("call", cx.agent, cx.task, cx.recipe, pos, f"read {owner.name}::{var} (abstracted)",
                       function=f"{owner.name}::{var}")
         self.model.call_sites.setdefault(fc, []).append(pos)
-        self.rules.append(
-            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go\n"
-            f"  -o {{Exists d. pending {fc} vnil d * ctl I (m_call d {s}) C E * rstat I go}}.")
+        self.rules.append(Rule(s, [q("ctl I m_run (ccons {} C) E", s), q("rstat I go")],
+                               [q("pending {} vnil d", fc), q("ctl I (m_call d {}) C E", s), q("rstat I go")],
+                               fresh=("d",)))
         cx.hoisted.append(s)
         cx.env.insert(0, "")   # (its result is pushed and popped with the statement's; the read is the cell's)
         cx.pushed += 1
@@ -697,10 +730,11 @@ class _Compiler:
         self.model.call_sites.setdefault(fc, []).append(e.pos)
         prem, outs = self.premises(sub)
         vals = [f"A{i + 1}" for i in range(len(args))]
-        evals = "".join(f" -o !peval vnil E vnil {p} {v}" for p, v in zip(args, vals))
-        self.rules.append(
-            f"{s} : ctl I m_run (ccons {s} C) E -o rstat I go{prem}{evals}\n"
-            f"  -o {{Exists d. pending {fc} {self._list(vals)} d * ctl I (m_call d {s}) C E * rstat I go{outs}}}.")
+        evals = [q("!peval vnil E vnil {} {}", p, v) for p, v in zip(args, vals)]
+        self.rules.append(Rule(
+            s, [q("ctl I m_run (ccons {} C) E", s), q("rstat I go"), *prem, *evals],
+            [q("pending {} {} d", fc, vlist(vals)), q("ctl I (m_call d {}) C E", s), q("rstat I go"), *outs],
+            fresh=("d",)))
         self.call_division_failures(e, s, sub, cx)
         cx.hoisted.append(s)
         cx.slots[id(e)] = len(cx.env)
@@ -724,32 +758,31 @@ class _Compiler:
         starting = getattr(self, "starting", None)   # (an initialiser run at start: its text)
         pending = self.__dict__.setdefault("call_divs", {})   # call site -> [(division site, divisor)]
         for k, (d, dp) in enumerate(zip(divisors, zeros)):
-            name = f"{s}_div{chr(97 + k)}"
-            zero = f" -o !peval vnil E vnil {dp} (vnum 0)"
-            head = f"{name} : ctl I m_run (ccons {s} C) E -o rstat I go"
+            rule = f"{s}_div{chr(97 + k)}"
+            zero = q("!peval vnil E vnil {} (vnum 0)", dp)
+            head = [q("ctl I m_run (ccons {} C) E", s), q("rstat I go")]
             if starting is not None:
                 where = self.division_site(cx.agent, cx.task, cx.recipe, d, starting)
-                self.rules.append(f"{head}{prem}{zero} -o sgate R -o hs R _ _ _ _ _\n"
-                                  f"  -o {{rs R s_failure * ecf R (vcons (vsite {where}) vnil){outs}}}.")
+                self.rules.append(Rule(rule, [*head, *prem, zero, q("sgate R"), q("hs R _ _ _ _ _")],
+                                       [q("rs R s_failure"), q("ecf R (vcons (vsite {}) vnil)", where), *outs]))
             elif not cx.run_tasks:   # a recipe's pre-condition check (a checker activation)
                 where = self.division_site(cx.agent, cx.task, cx.recipe, d, self.pre_condition_of(e, cx))
-                hsp = "hs R (h_rchk T P Cs Sc Rc) EC F Pl W"
                 # (it reads the checker and the handler itself, as the pre-condition's site does:
                 # named stN_call_divX already, with crashes it is guarded as that site's rules are)
-                name = "st" + name[2:]
-                self.guards[name] = (cx.agent.name, "chk")
-                head = f"{name} : ctl I m_run (ccons {s} C) E -o rstat I go"
-                self.rules.append(
-                    f"{head} -o chk I R Rc N -o {hsp}{prem}{zero} -o !num_add N 1000 N1"
-                    f" -o !ec_add (k_local {where}) EC EC1\n"
-                    f"  -o {{ctl I m_run (ccons s_pdone cnil) E * rstat I go * chk I R Rc N1"
-                    f" * {hsp.replace(' EC ', ' EC1 ')}{outs}}}.")
+                rule = "st" + rule[2:]
+                self.guards[rule] = (cx.agent.name, "chk")
+                self.rules.append(Rule(
+                    rule, [*head, q("chk I R Rc N"), q(HS_CHECK, "EC"), *prem, zero, q("!num_add N 1000 N1"),
+                           q("!ec_add (k_local {}) EC EC1", where)],
+                    [q("ctl I m_run (ccons s_pdone cnil) E"), q("rstat I go"), q("chk I R Rc N1"),
+                     q(HS_CHECK, "EC1"), *outs]))
             else:   # a statement: its text is known once its site is made (division_failures)
                 where = self.division_site(cx.agent, cx.task, cx.recipe, d, format_expr(e))
                 pending.setdefault(s, []).append((where, d))
-                self.rules.append(
-                    f"{head}{prem}{zero} -o act I R0 T0 Rc0 N\n"
-                    f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
+                self.rules.append(Rule(
+                    rule, [*head, *prem, zero, q("act I R0 T0 Rc0 N")],
+                    [q("ctl I m_run cnil E"), q("rstat I go"), q("act I R0 T0 Rc0 N"),
+                     q("kill I (k_local {})", where), *outs]))
 
     @staticmethod
     def pre_condition_of(e: a.Call, cx: _Ctx) -> str:
@@ -762,61 +795,61 @@ class _Compiler:
                             return f"pre-condition {format_expr(p)}"
         return f"pre-condition call {format_expr(e)}"
 
-    def pexp(self, e: a.Expr, cx: _Ctx) -> str:
+    def pexp(self, e: a.Expr, cx: _Ctx) -> S.Expr:
         """``e`` as a pexp term (after :meth:`prepare`): cells read as premises, calls as their pushed results."""
         if isinstance(e, a.BoolLit):
-            return "(pl (vbool tt))" if e.value else "(pl (vbool ff))"
+            return q("pl (vbool tt)") if e.value else q("pl (vbool ff)")
         if isinstance(e, a.IntLit):
-            return f"(pl (vnum {e.value}))"
+            return q("pl (vnum {})", e.value)
         if isinstance(e, a.DoubleLit):
-            return f"(pl (vnum {num_lit(Fraction(repr(e.value)))}))"
+            return q("pl (vnum {})", num_tree(Fraction(repr(e.value))))
         if isinstance(e, a.StringLit):
-            return f"(pl (vstr {str_lit(e.value)}))"
+            return q("pl (vstr {})", string(e.value))
         if isinstance(e, a.Name):
             if e.name in cx.logic:
-                return cx.logic[e.name]
+                return q("{}", cx.logic[e.name])
             if e.name in cx.env:
-                return f"(ploc {nat(cx.env.index(e.name))})"
+                return q("ploc {}", nat(cx.env.index(e.name)))
             return cx.var(self.cell(cx.agent.name, e.name))
         if isinstance(e, a.Remote):
             return cx.var(self.cell(e.agent, e.name))
         if isinstance(e, a.Call):
             if id(e) not in cx.slots:
                 self.hoist_call(e, cx)   # (a call in a pre-condition, compiled without prepare)
-            return f"(ploc {nat(len(cx.env) - 1 - cx.slots[id(e)])})"
+            return q("ploc {}", nat(len(cx.env) - 1 - cx.slots[id(e)]))
         if isinstance(e, a.Field):
             ty = self.ty(e.base, cx)
             fields = self.model.structs.get(ty, [])
             if e.name not in fields:
                 raise UnsupportedError(f"field '{e.name}' of a value of type {ty}", e.pos)
-            return f"(pfield {nat(fields.index(e.name))} {self.pexp(e.base, cx)})"
+            return q("pfield {} {}", nat(fields.index(e.name)), self.pexp(e.base, cx))
         if isinstance(e, a.Unary):
             inner = self.pexp(e.operand, cx)
-            return f"(pnot {inner})" if e.op == "!" else f"(pneg {inner})"
+            return q("pnot {}", inner) if e.op == "!" else q("pneg {}", inner)
         if isinstance(e, a.Binary):
             op = _OPS.get(e.op)
             if e.op == "/":
                 op = "o_idiv" if self.ty(e.left, cx) == "int" else "o_div"
             if op is None:
                 raise UnsupportedError(f"operator '{e.op}'", e.pos)
-            return f"(pbin {op} {self.pexp(e.left, cx)} {self.pexp(e.right, cx)})"
+            return q("pbin {} {} {}", op, self.pexp(e.left, cx), self.pexp(e.right, cx))
         if isinstance(e, a.LastError):
             c = self.cst_for(cx.agent, e.constraint, None, purpose="last-error")
-            return f"(plast {c})"
+            return q("plast {}", c)
         raise UnsupportedError(f"expression {format_expr(e)}", e.pos)
 
-    def premises(self, cx: _Ctx, writes: Optional[dict[str, str]] = None) -> tuple[str, str]:
+    def premises(self, cx: _Ctx, writes: Optional[dict[str, str]] = None) -> tuple[list, list]:
         """Premises reading the cells of ``cx`` (and the cells written), and the facts that put them back."""
         writes = writes or {}
         prem, outs = [], []
         for cell, v in cx.reads.items():
-            prem.append(f"contains {cell} {v}")
-            outs.append(f"contains {cell} {writes.get(cell, v)}")
+            prem.append(q("contains {} {}", cell, v))
+            outs.append(q("contains {} {}", cell, writes.get(cell, v)))
         for cell, v in writes.items():
             if cell not in cx.reads:
-                prem.append(f"contains {cell} _")
-                outs.append(f"contains {cell} {v}")
-        return "".join(" -o " + p for p in prem), "".join(" * " + o for o in outs)
+                prem.append(q("contains {} _", cell))
+                outs.append(q("contains {} {}", cell, v))
+        return prem, outs
 
     # ------------------------------------------------------------ constraints
     def cst_for(self, sender: a.Agent, pred: a.Expr, target: Optional[str], purpose: str = "constraint") -> str:
@@ -911,62 +944,60 @@ class _Compiler:
         s = self.site(kind_name or kind, ag, task.name, r.name, st.pos, text, **site_kw)
         division_sites = None
         E = cx.envpat()
-        head = f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go"
+        head = [q("ctl I m_run (ccons {} C) {}", s, E), q("rstat I go")]
         if isinstance(st, a.Set):
             cell = self.cell(ag.name, st.target.name)
             val = self.pexp(st.value, cx)
             prem, outs = self.premises(cx, {cell: "X"})
-            self.rules.append(f"{head}{prem} -o !peval vnil {E} vnil {val} X\n"
-                              f"  -o {{ctl I m_run C E * rstat I go{outs}}}.")
+            self.rules.append(Rule(s, [*head, *prem, q("!peval vnil {} vnil {} X", E, val)],
+                                   [q("ctl I m_run C E"), q("rstat I go"), *outs]))
         elif isinstance(st, a.Let):
             val = self.pexp(st.value, cx)
             prem, outs = self.premises(cx)
-            self.rules.append(f"{head}{prem} -o !peval vnil {E} vnil {val} X\n"
-                              f"  -o {{ctl I m_run C (vcons X E) * rstat I go{outs}}}.")
+            self.rules.append(Rule(s, [*head, *prem, q("!peval vnil {} vnil {} X", E, val)],
+                                   [q("ctl I m_run C (vcons X E)"), q("rstat I go"), *outs]))
         elif isinstance(st, a.ExprStmt):
-            self.rules.append(f"{head} -o {{ctl I m_run C E * rstat I go}}.")
+            self.rules.append(Rule(s, head, [q("ctl I m_run C E"), q("rstat I go")]))
         elif isinstance(st, (a.Make, a.Ensure)):
             self.send(ag, st, cx, s, head)
         elif isinstance(st, a.Abort):
             k = env.index(st.handle)
             # abort gives up ownership: the request's emitter becomes `irel`, so that nothing of it
             # (a temporary failure, a continue) reaches this activation afterwards
-            self.rules.append(f"{head} -o act I R0 T0 Rc0 (s N) -o !nth E {nat(k)} (vreq R) -o owns I R _\n"
-                              f"  -o rq R Ar Cr I Kr\n"
-                              f"  -o {{ctl I m_run C E * rstat I go * act I R0 T0 Rc0 N * abortreq R"
-                              f" * rq R Ar Cr irel Kr}}.")
+            self.rules.append(Rule(
+                s, [*head, q("act I R0 T0 Rc0 (s N)"), q("!nth E {} (vreq R)", nat(k)), q("owns I R _"),
+                    q("rq R Ar Cr I Kr")],
+                [q("ctl I m_run C E"), q("rstat I go"), q("act I R0 T0 Rc0 N"), q("abortreq R"),
+                 q("rq R Ar Cr irel Kr")]))
         elif self.ticks_of(st) is not None:   # timed mode: a wait or an assert with a period
             self.timed_wait(st, s, cx, kind)
             division_sites = self.division_sites
         else:  # wait, assert
             cond = self.pexp(st.cond, cx)
             prem, outs = self.premises(cx)
-            self.rules.append(f"{head}{prem} -o !peval vnil {E} vnil {cond} (vbool tt)\n"
-                              f"  -o {{ctl I m_run C E * rstat I go{outs}}}.")
-            false = f"{s}_false : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
-            false += f" -o !peval vnil {E} vnil {cond} (vbool ff)"
+            self.rules.append(Rule(s, [*head, *prem, q("!peval vnil {} vnil {} (vbool tt)", E, cond)],
+                                   [q("ctl I m_run C E"), q("rstat I go"), *outs]))
+            false = [*head, *prem, q("!peval vnil {} vnil {} (vbool ff)", E, cond)]
             if kind == "assert":
                 # the recipe fails (a local failure); nothing more of the body runs
-                self.rules.append(f"{false} -o act I R0 T0 Rc0 N\n"
-                                  f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N"
-                                  f" * kill I (k_local {s}){outs}}}.")
+                self.rules.append(Rule(f"{s}_false", [*false, q("act I R0 T0 Rc0 N")],
+                                       [q("ctl I m_run cnil E"), q("rstat I go"), q("act I R0 T0 Rc0 N"),
+                                        q("kill I (k_local {})", s), *outs]))
             elif cx.hoisted:
                 # calls or task runs in the predicate: poll, i.e. run them again
-                again = f"(ccons {s} C)"
-                for h in reversed(cx.hoisted):
-                    again = f"(ccons {h} {again})"
-                self.rules.append(f"{false}\n  -o {{ctl I m_run {again} E * rstat I go{outs}}}.")
+                again = code_list([*cx.hoisted, s], "C")
+                self.rules.append(Rule(f"{s}_false", false, [q("ctl I m_run {} E", again), q("rstat I go"), *outs]))
             else:
                 # block until one of the variables read changes
-                snap = self._list(list(cx.reads.values()))
-                self.rules.append(f"{false}\n  -o {{ctl I (m_block {snap}) (ccons {s} C) E * rstat I go{outs}}}.")
+                snap = vlist(list(cx.reads.values()))
+                self.rules.append(Rule(f"{s}_false", false,
+                                       [q("ctl I (m_block {}) (ccons {} C) E", snap, s), q("rstat I go"), *outs]))
                 fresh = {c: f"W{i + 1}" for i, c in enumerate(cx.reads)}
-                wprem = "".join(f" -o contains {c} {w}" for c, w in fresh.items())
-                wouts = "".join(f" * contains {c} {w}" for c, w in fresh.items())
-                self.rules.append(
-                    f"{s}_wake : ctl I (m_block Old) (ccons {s} C) E{wprem}\n"
-                    f"  -o !val_eq Old {self._list(list(fresh.values()))} ff\n"
-                    f"  -o {{ctl I m_run (ccons {s} C) E{wouts}}}.")
+                self.rules.append(Rule(
+                    f"{s}_wake", [q("ctl I (m_block Old) (ccons {} C) E", s),
+                                  *(q("contains {} {}", c, w) for c, w in fresh.items()),
+                                  q("!val_eq Old {} ff", vlist(list(fresh.values())))],
+                    [q("ctl I m_run (ccons {} C) E", s), *(q("contains {} {}", c, w) for c, w in fresh.items())]))
         self.division_failures(st, s, cx, kind, division_sites)
         for _ in range(cx.pushed):
             env.pop(0)
@@ -987,14 +1018,14 @@ class _Compiler:
             if lit is None:
                 self.where_hyps[cst] = None
                 return
-            hyps.append(f"(fatom (pbin o_eq (pc {cell}) (pl {lit})))")
+            hyps.append(q("fatom (pbin o_eq (pc {}) (pl {}))", cell, lit))
         got = tuple(hyps)
         if cst in self.where_hyps and self.where_hyps[cst] != got:
             self.where_hyps[cst] = None
         else:
             self.where_hyps[cst] = got
 
-    def literal(self, e: a.Expr) -> Optional[str]:
+    def literal(self, e: a.Expr) -> Optional[S.Expr]:
         """The value of a literal expression (a where value), or None."""
         if isinstance(e, (a.IntLit, a.DoubleLit, a.BoolLit, a.StringLit)) or (
                 isinstance(e, a.Unary) and e.op == "-" and isinstance(e.operand, (a.IntLit, a.DoubleLit))):
@@ -1009,7 +1040,7 @@ class _Compiler:
             if not hyps:
                 continue
             p = self.cst_pexp[c]
-            key = f"(pwhere {p} {self._list([f'(vform {h})' for h in hyps])})"
+            key = q("pwhere {} {}", p, vlist([q("vform {}", h) for h in hyps]))
             self.cst_pexp[c] = key
             self.predicates[key] = self.predicates[p]
             self.hyp_keys[key] = (p, hyps)
@@ -1048,7 +1079,7 @@ class _Compiler:
         self.clock = True
         self.model.tick_ms, self.model.cycle = self.tick_ms, self.cycle
         # (declared before the recipes' code, which a timed assert's polled site is part of)
-        self.out.append("spoll : site -> number -> site.                % site S polled again, with K polls left before its timeout")
+        self.out.append(decl("spoll", q("site -> number -> site")))   # site S polled again, K polls left before its timeout
 
     def ticks_of(self, st) -> Optional[int]:
         """The period of a statement in ticks (timed mode, with a clock), or None."""
@@ -1056,11 +1087,11 @@ class _Compiler:
             return None
         return st.period.value // self.tick_ms
 
-    def sleep(self, ticks: int, again: str, outs: str) -> tuple[str, str]:
-        """Premises and outputs of going to sleep for ``ticks`` (the code ``again`` runs at the wake)."""
+    def sleep(self, ticks: int, again, outs: list) -> tuple[list, list]:
+        """Premises and conclusions of going to sleep for ``ticks`` (the code ``again`` runs at the wake)."""
         self.periods.add(ticks)
-        return (f" -o clock Tk -o !tafter {ticks} Tk Dk -o tmrs Lk -o !tm_ins Dk Lk Lk1",
-                f"ctl I (m_sleep Dk) {again} E * rstat I go{outs} * clock Tk * tmrs Lk1")
+        return ([q("clock Tk"), q("!tafter {} Tk Dk", ticks), q("tmrs Lk"), q("!tm_ins Dk Lk Lk1")],
+                [q("ctl I (m_sleep Dk) {} E", again), q("rstat I go"), *outs, q("clock Tk"), q("tmrs Lk1")])
 
     def timed_wait(self, st, s: str, cx: _Ctx, kind: str) -> None:
         """A wait or an assert with a period, in timed mode (docs/semantics.md, "Time").
@@ -1075,69 +1106,63 @@ class _Compiler:
         ticks = self.ticks_of(st)
         cond = self.pexp(st.cond, cx)
         prem, outs = self.premises(cx)
+        holds = q("!peval vnil {} vnil {} (vbool tt)", E, cond)
+        fails = q("!peval vnil {} vnil {} (vbool ff)", E, cond)
+        go = [q("ctl I m_run C E"), q("rstat I go"), *outs]
+        stop = [q("ctl I m_run cnil E"), q("rstat I go"), q("act I R0 T0 Rc0 N")]
 
-        def code(last: str) -> str:
-            out = f"(ccons {last} C)"
-            for h in reversed(cx.hoisted):
-                out = f"(ccons {h} {out})"
-            return out
+        def at(code) -> list:
+            return [q("ctl I m_run (ccons {} C) {}", code, E), q("rstat I go"), *prem]
+
+        def code(last) -> S.Expr:
+            return code_list([*cx.hoisted, last], "C")
         if kind == "assert":
             # it sleeps first, then makes its calls and is evaluated, once (its code is
             # s, the hoisted calls, the polled site: see stmt)
-            polled = f"(spoll {s} 0)"
-            sp, so = self.sleep(ticks, "C", "")
-            self.rules.append(f"{s}_sleep : ctl I m_run (ccons {s} C) E -o rstat I go{sp}\n  -o {{{so}}}.")
+            polled = q("spoll {} 0", s)
+            sp, so = self.sleep(ticks, "C", [])
+            self.rules.append(Rule(f"{s}_sleep", [q("ctl I m_run (ccons {} C) E", s), q("rstat I go"), *sp], so))
             self.timed_assert_code = [s] + cx.hoisted + [polled]
-            self.rules.append(f"{s} : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
-                              f" -o !peval vnil {E} vnil {cond} (vbool tt)\n  -o {{ctl I m_run C E * rstat I go{outs}}}.")
-            self.rules.append(f"{s}_false : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
-                              f" -o !peval vnil {E} vnil {cond} (vbool ff) -o act I R0 T0 Rc0 N\n"
-                              f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N"
-                              f" * kill I (k_local {s}){outs}}}.")
+            self.rules.append(Rule(s, [*at(polled), holds], go))
+            self.rules.append(Rule(f"{s}_false", [*at(polled), fails, q("act I R0 T0 Rc0 N")],
+                                   [*stop, q("kill I (k_local {})", s), *outs]))
             self.division_sites = [polled]
             return
         timeout = self.timing.wait_timeout
         polls = -(-timeout // st.period.value) if timeout is not None else 0   # 0: no timeout
-        self.rules.append(f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
-                          f" -o !peval vnil {E} vnil {cond} (vbool tt)\n  -o {{ctl I m_run C E * rstat I go{outs}}}.")
-        sp, so = self.sleep(ticks, code(f"(spoll {s} {polls})"), outs)
-        self.rules.append(f"{s}_false : ctl I m_run (ccons {s} C) {E} -o rstat I go{prem}"
-                          f" -o !peval vnil {E} vnil {cond} (vbool ff){sp}\n  -o {{{so}}}.")
-        polled = f"(spoll {s} Kp)" if polls else f"(spoll {s} 0)"
+        self.rules.append(Rule(s, [*at(s), holds], go))
+        sp, so = self.sleep(ticks, code(q("spoll {} {}", s, polls)), outs)
+        self.rules.append(Rule(f"{s}_false", [*at(s), fails, *sp], so))
+        polled = q("spoll {} Kp", s) if polls else q("spoll {} 0", s)
         self.division_sites = [s, polled]
-        self.rules.append(f"{s}_poll : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
-                          f" -o !peval vnil {E} vnil {cond} (vbool tt)\n  -o {{ctl I m_run C E * rstat I go{outs}}}.")
+        self.rules.append(Rule(f"{s}_poll", [*at(polled), holds], go))
         # a poll that finds the condition false is a step of time, not of the agent (its own
         # fairness group: an agent polling for ever does not hide its other steps from fairness)
         self.time_steps.add(f"{s}_poll_false")
         if not polls:
             sp, so = self.sleep(ticks, code(polled), outs)
-            self.rules.append(f"{s}_poll_false : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
-                              f" -o !peval vnil {E} vnil {cond} (vbool ff){sp}\n  -o {{{so}}}.")
+            self.rules.append(Rule(f"{s}_poll_false", [*at(polled), fails, *sp], so))
             return
-        sp, so = self.sleep(ticks, code(f"(spoll {s} Kp1)"), outs)
-        self.rules.append(f"{s}_poll_false : ctl I m_run (ccons {polled} C) {E} -o rstat I go{prem}"
-                          f" -o !peval vnil {E} vnil {cond} (vbool ff) -o !num_lt 1 Kp -o !num_sub Kp 1 Kp1{sp}\n"
-                          f"  -o {{{so}}}.")
+        sp, so = self.sleep(ticks, code(q("spoll {} Kp1", s)), outs)
+        self.rules.append(Rule(f"{s}_poll_false", [*at(polled), fails, q("!num_lt 1 Kp"), q("!num_sub Kp 1 Kp1"), *sp],
+                               so))
         site = self.model.sites[s]
         where = self.site("timeout", cx.agent, cx.task, cx.recipe, st.pos,
                           f"timeout: {site.text} did not hold within {timeout} ms "
                           f"({polls} poll{'s' if polls > 1 else ''} every {st.period.value} ms)")
         self.timeouts[s] = where
-        self.rules.append(f"{s}_timeout : ctl I m_run (ccons (spoll {s} 1) C) {E} -o rstat I go{prem}"
-                          f" -o !peval vnil {E} vnil {cond} (vbool ff) -o act I R0 T0 Rc0 N\n"
-                          f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N"
-                          f" * kill I (k_local {where}){outs}}}.")
+        self.rules.append(Rule(f"{s}_timeout", [*at(q("spoll {} 1", s)), fails, q("act I R0 T0 Rc0 N")],
+                               [*stop, q("kill I (k_local {})", where), *outs]))
 
     def time_declarations(self) -> list[str]:
         """Timed mode: the clock's declarations and rules, its tables, the ensures' periods."""
         n = self.cycle
-        out = ["", TIME_TEXT.strip()]
+        out = [Comment(""), *parsed_part(TIME_TEXT, "<framework: time>")]
         if self.crashes:
-            out.append(CRASH_TIME_TEXT.strip())
-        out += [f"tnext_{k} : tnext {k} {(k + 1) % n}." for k in range(n)]
-        out += [f"tafter_{p}_{k} : tafter {p} {k} {(k + p) % n}." for p in sorted(self.periods) for k in range(n)]
-        out += [f"eperiod_{c} : eperiod {c} {p}." for c, p in sorted(self.eperiods.items())]
+            out += parsed_part(CRASH_TIME_TEXT, "<framework: crashes and time>")
+        out += [fact(f"tnext_{k}", "tnext {} {}", k, (k + 1) % n) for k in range(n)]
+        out += [fact(f"tafter_{p}_{k}", "tafter {} {} {}", p, k, (k + p) % n) for p in sorted(self.periods) for k in range(n)]
+        out += [fact(f"eperiod_{c}", "eperiod {} {}", c, p) for c, p in sorted(self.eperiods.items())]
         # time is no agent's step: the tick, the wakes and the re-checks that find nothing have their
         # own fairness group (a spelling no agent can have)
         for r in ("tick", "wake", *(f"ensure_check_{c}" for c in self.eperiods),
@@ -1175,19 +1200,18 @@ class _Compiler:
         for k, d in enumerate(divisors):
             where = self.division_site(cx.agent, cx.task, cx.recipe, d, starting or self.model.sites[s].text)
             for j, head in enumerate(at or [s]):   # (timed: the statement's polled forms too)
-                zero = f" -o !peval vnil {E} vnil {self.pexp(d, cx)} (vnum 0)"
+                zero = q("!peval vnil {} vnil {} (vnum 0)", E, self.pexp(d, cx))
+                reached = [q("ctl I m_run (ccons {} C) {}", head, E), q("rstat I go"), *prem, zero]
                 if starting is not None:
                     # at start (start_code): the agents cannot start; the request from outside,
                     # not sent yet, fails with the division as its error context
-                    self.rules.append(
-                        f"{s}_div{chr(97 + k)} : ctl I m_run (ccons {head} C) {E} -o rstat I go{prem}{zero}"
-                        f" -o sgate R -o hs R _ _ _ _ _\n"
-                        f"  -o {{rs R s_failure * ecf R (vcons (vsite {where}) vnil){outs}}}.")
+                    self.rules.append(Rule(f"{s}_div{chr(97 + k)}", [*reached, q("sgate R"), q("hs R _ _ _ _ _")],
+                                           [q("rs R s_failure"), q("ecf R (vcons (vsite {}) vnil)", where), *outs]))
                     continue
-                self.rules.append(
-                    f"{s}_div{chr(97 + k)}{'_poll' * j} : ctl I m_run (ccons {head} C) {E} -o rstat I go{prem}"
-                    f"{zero} -o act I R0 T0 Rc0 N\n"
-                    f"  -o {{ctl I m_run cnil E * rstat I go * act I R0 T0 Rc0 N * kill I (k_local {where}){outs}}}.")
+                self.rules.append(Rule(
+                    f"{s}_div{chr(97 + k)}{'_poll' * j}", [*reached, q("act I R0 T0 Rc0 N")],
+                    [q("ctl I m_run cnil E"), q("rstat I go"), q("act I R0 T0 Rc0 N"), q("kill I (k_local {})", where),
+                     *outs]))
 
     @staticmethod
     def own_divisors(e: a.Expr) -> list[a.Expr]:
@@ -1243,7 +1267,7 @@ class _Compiler:
         prem, outs = self.premises(cx)
         names = [f"W{i + 1}" for i in range(len(wvals))]
         E = cx.envpat()
-        evals = "".join(f" -o !peval vnil {E} vnil {p} {w}" for p, w in zip(wvals, names))
+        evals = [q("!peval vnil {} vnil {} {}", E, p, w) for p, w in zip(wvals, names)]
         kind = "make" if isinstance(st, a.Make) else "ensure"
         if kind == "ensure":
             self.ensured.add(cst)
@@ -1251,19 +1275,17 @@ class _Compiler:
             if ticks is not None:   # timed: re-checked at its period (the shortest of its ensures)
                 self.eperiods[cst] = min(ticks, self.eperiods.get(cst, ticks))
                 self.periods.add(self.eperiods[cst])
-        pairs = self._list([f"(vpair (vcell {c}) {w})" for c, w in zip(cells, names)])
+        pairs = vlist([q("vpair (vcell {}) {}", c, w) for c, w in zip(cells, names)])
         stamp_p, stamp_o, failed = self.stamp(target)
-        evals += stamp_p
-        outs += stamp_o
-        req = (f"rq r a_{target} {cst} I k_{kind} * rs r s_sent * ppz r ff * owns I r ff"
-               f" * hs r h_select vnil {failed} vnil (vsome {pairs})")
+        req = [q("rq r {} {} I {}", f"a_{target}", cst, f"k_{kind}"), q("rs r s_sent"), q("ppz r ff"), q("owns I r ff"),
+               q("hs r h_select vnil {} vnil (vsome {})", failed, pairs)]
         if kind == "make":
-            ctl = "ctl I (m_make r) C E"
+            ctl = q("ctl I (m_make r) C E")
         else:
-            ctl = "ctl I m_run C (vcons (vreq r) E)" if st.handle else "ctl I m_run C E"
-        self.rules.append(
-            f"{head} -o act I R0 T0 Rc0 N{prem}{evals}\n"
-            f"  -o {{Exists r. {req} * {ctl} * rstat I go * act I R0 T0 Rc0 (s N){outs}}}.")
+            ctl = q("ctl I m_run C (vcons (vreq r) E)") if st.handle else q("ctl I m_run C E")
+        self.rules.append(Rule(
+            s, [*head, q("act I R0 T0 Rc0 N"), *prem, *evals, *stamp_p],
+            [*req, ctl, q("rstat I go"), q("act I R0 T0 Rc0 (s N)"), *outs, *stamp_o], fresh=("r",)))
 
     def recipe(self, ag: a.Agent, t: a.Task, r: a.Recipe) -> None:
         o = self.out
@@ -1279,12 +1301,11 @@ class _Compiler:
                 body += sites
         end = self.block(ag, t, r, r.end)
         end_code = end + ["s_done"]
-        o.append(f"body_{rc} : bodycode {rc} {self._code(body + ['s_end'] + end_code)}.")
-        o.append(f"end_{rc} : endcode {rc} {self._code(end_code)}.")
+        o.append(fact(f"body_{rc}", "bodycode {} {}", rc, code_list(body + ['s_end'] + end_code)))
+        o.append(fact(f"end_{rc}", "endcode {} {}", rc, code_list(end_code)))
         # pre-condition checks, in a checker activation that counts the false ones
         env: list[str] = []
         pre_code = []
-        hsp = "hs R (h_rchk T P Cs Sc Rc) EC F Pl W"
         for e in r.pre:
             cx = _Ctx(self, ag, env, run_tasks=False, task=t.name, recipe=r.name)
             self.prepare(e, cx)
@@ -1292,28 +1313,30 @@ class _Compiler:
             s = self.site("pre", ag, t.name, r.name, e.pos, format_expr(e))
             prem, outs = self.premises(cx)
             E = cx.envpat()
-            self.rules.append(
-                f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o chk I R Rc N -o {hsp}{prem}\n"
-                f"  -o !peval vnil {E} EC {cond} (vbool B) -o !pre_count B N N1\n"
-                f"  -o {{ctl I m_run C E * rstat I go * chk I R Rc N1 * {hsp}{outs}}}.")
+            checking = [q("ctl I m_run (ccons {} C) {}", s, E), q("rstat I go"), q("chk I R Rc N"), q(HS_CHECK, "EC"),
+                        *prem]
+            self.rules.append(Rule(
+                s, [*checking, q("!peval vnil {} EC {} (vbool B)", E, cond), q("!pre_count B N N1")],
+                [q("ctl I m_run C E"), q("rstat I go"), q("chk I R Rc N1"), q(HS_CHECK, "EC"), *outs]))
             # a division by zero: the pre-condition cannot be evaluated, so the recipe is not
             # acceptable (as when a call in it fails), the division in the request's error context
-            hsp1 = hsp.replace(" EC ", " EC1 ")
             for k, d in enumerate(self.own_divisors(e)):
                 where = self.division_site(ag, t.name, r.name, d, f"pre-condition {format_expr(e)}")
-                self.rules.append(
-                    f"{s}_div{chr(97 + k)} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o chk I R Rc N -o {hsp}{prem}\n"
-                    f"  -o !peval vnil {E} EC {self.pexp(d, cx)} (vnum 0) -o !num_add N 1000 N1"
-                    f" -o !ec_add (k_local {where}) EC EC1\n"
-                    f"  -o {{ctl I m_run (ccons s_pdone cnil) E * rstat I go * chk I R Rc N1 * {hsp1}{outs}}}.")
+                self.rules.append(Rule(
+                    f"{s}_div{chr(97 + k)}",
+                    [*checking, q("!peval vnil {} EC {} (vnum 0)", E, self.pexp(d, cx)), q("!num_add N 1000 N1"),
+                     q("!ec_add (k_local {}) EC EC1", where)],
+                    [q("ctl I m_run (ccons s_pdone cnil) E"), q("rstat I go"), q("chk I R Rc N1"), q(HS_CHECK, "EC1"),
+                     *outs]))
             for _ in range(cx.pushed):
                 env.pop(0)
             pre_code += cx.hoisted + [s]
         pre_code.append("s_pdone")
-        o.append(f"pre_{rc} : precode {rc} {self._code(pre_code)}.")
+        o.append(fact(f"pre_{rc}", "precode {} {}", rc, code_list(pre_code)))
         dom = sorted({self.cst_for(ag, c.expr, c.target(ag.name)) for _, c in r.constraints()})
-        o.append(f"cdom_{rc} : cdom {rc} {self._list([f'(vcst {c})' for c in dom])}.")
-        o.append(f"rinfo_{rc} : rinfo {rc} {r.preference()} {len(r.pre)} {len(r.constraint_domain(ag.name))}.")
+        o.append(fact(f"cdom_{rc}", "cdom {} {}", rc, vlist([q("vcst {}", c) for c in dom])))
+        o.append(fact(f"rinfo_{rc}", "rinfo {} {} {} {}", rc, r.preference(), len(r.pre),
+                      len(r.constraint_domain(ag.name))))
         # the calling-context search (5.3) at an activation of this recipe, for each constraint it
         # may emit: its rules are compiled once every constraint is known (calling_context_rules)
         for c in dom:
@@ -1346,32 +1369,32 @@ class _Compiler:
         for ag, rc, c, others in self.asks:
             cx = _Ctx(self, ag, [], run_tasks=False)
             cond = self.alternative_condition(others, cx) if others else None
-            head = f"cres R Rk -o rq Rk Ak {c} Ik Kk -o act Ik Rk1 Tk {rc} N -o alive Ik"
-            keep = f"rq Rk Ak {c} Ik Kk * act Ik Rk1 Tk {rc} N * alive Ik"
+            head = [q("cres R Rk"), q("rq Rk Ak {} Ik Kk", c), q("act Ik Rk1 Tk {} N", rc), q("alive Ik")]
+            keep = [q("rq Rk Ak {} Ik Kk", c), q("act Ik Rk1 Tk {} N", rc), q("alive Ik")]
+            no_alt = [q("!peval vnil vnil vnil {} (vbool ff)", cond)] if cond is not None else []
             if ag.name in self.logic_pres:
                 prem, outs = self.premises(cx)
                 if cond is not None:
                     self.alternative_rules(ag, rc, c, head + prem, keep + outs, cond)
-                no_alt = f"\n  -o !peval vnil vnil vnil {cond} (vbool ff)" if cond is not None else ""
                 self.guards[f"ask_caller_{rc}_{c}"] = (ag.name, "ask")
-                self.rules.append(f"ask_caller_{rc}_{c} : {head}{prem}{no_alt}\n  -o {{{keep}{outs} * cres R Rk1}}.")
+                self.rules.append(Rule(f"ask_caller_{rc}_{c}", [*head, *prem, *no_alt], [*keep, *outs, q("cres R Rk1")]))
                 continue
-            snap = self._list([f"(vpair (vcell {cell}) {cx.meta(cell)})"
-                               for cell in snap_cells.get(ag.name, [])])
+            snap = vlist([q("vpair (vcell {}) {}", cell, cx.meta(cell)) for cell in snap_cells.get(ag.name, [])])
             prem, outs = self.premises(cx)
             if cond is not None:
                 self.alternative_rules(ag, rc, c, head + prem, keep + outs, cond)
-            no_alt = f"\n  -o !peval vnil vnil vnil {cond} (vbool ff)" if cond is not None else ""
-            req = f"hs Rk1 (h_run Tk P Ik) EC F Pl W -o rq Rk1 a_{ag.name} C1 J1 K1 -o mask a_{ag.name} M"
-            back = f"hs Rk1 (h_run Tk P Ik) EC F Pl W * rq Rk1 a_{ag.name} C1 J1 K1 * mask a_{ag.name} M"
-            decide = f"!mrm M Pl M0 -o !mtasks M0 MT -o !retask K1 C1 Tk {snap} F MT"
+            agent = f"a_{ag.name}"
+            req = [q("hs Rk1 (h_run Tk P Ik) EC F Pl W"), q("rq Rk1 {} C1 J1 K1", agent), q("mask {} M", agent)]
+            decide = [q("!mrm M Pl M0"), q("!mtasks M0 MT")]
             self.guards[f"ask_tasks_{rc}_{c}"] = self.guards[f"ask_caller_{rc}_{c}"] = (ag.name, "hs")
-            self.rules.append(f"ask_tasks_{rc}_{c} : {head}{prem}{no_alt}\n  -o {req}\n  -o {decide} tt\n"
-                              f"  -o {{{keep}{outs} * {back} * kill Ik (k_retask Tk)}}.")
-            self.rules.append(f"ask_caller_{rc}_{c} : {head}{prem}{no_alt}\n  -o {req}\n  -o {decide} ff\n"
-                              f"  -o {{{keep}{outs} * {back} * cres R Rk1}}.")
+            self.rules.append(Rule(f"ask_tasks_{rc}_{c}",
+                                   [*head, *prem, *no_alt, *req, *decide, q("!retask K1 C1 Tk {} F MT tt", snap)],
+                                   [*keep, *outs, *req, q("kill Ik (k_retask Tk)")]))
+            self.rules.append(Rule(f"ask_caller_{rc}_{c}",
+                                   [*head, *prem, *no_alt, *req, *decide, q("!retask K1 C1 Tk {} F MT ff", snap)],
+                                   [*keep, *outs, *req, q("cres R Rk1")]))
 
-    def alternative_condition(self, others: list[a.Recipe], cx: "_Ctx") -> str:
+    def alternative_condition(self, others: list[a.Recipe], cx: "_Ctx") -> S.Expr:
         """Whether one of ``others`` is acceptable in the current situation (4.4: its
         pre-conditions hold), over the cells ``cx`` reads.
 
@@ -1381,37 +1404,33 @@ class _Compiler:
         cannot be evaluated, so it does not hold (``pholds``: false when it has no value), and
         its recipe is not acceptable, as in a recipe's pre-condition check."""
         options = []
-        for q in others:
-            conj = [x for e in q.pre for x in a.conjuncts(e)
+        for alt in others:
+            conj = [x for e in alt.pre for x in a.conjuncts(e)
                     if not any(True for _ in a.calls(x)) and
                     not any(isinstance(n, a.LastError) for n in a.walk(x))]
-            form = "(pl (vbool tt))"
+            true = form = q("pl (vbool tt)")
             for x in reversed(conj):
                 px = self.pexp(x, cx)
                 if self.own_divisors(x):
-                    px = f"(pholds {px})"
-                form = px if form == "(pl (vbool tt))" else f"(pbin o_and {px} {form})"
+                    px = q("pholds {}", px)
+                form = px if form == true else q("pbin o_and {} {}", px, form)
             options.append(form)
         cond = options[0]
         for f in options[1:]:
-            cond = f"(pbin o_or {cond} {f})"
+            cond = q("pbin o_or {} {}", cond, f)
         return cond
 
-    def alternative_rules(self, ag: a.Agent, rc: str, c: str, head: str, keep: str, cond: str) -> None:
+    def alternative_rules(self, ag: a.Agent, rc: str, c: str, head: list, keep: list, cond: S.Expr) -> None:
         """The calling-context search at an activation of ``rc`` holding a request of ``c``: it
         reconfigures onto another recipe when one that avoids ``c`` is acceptable now (``cond``)."""
         self.guards[f"ask_alternative_{rc}_{c}"] = (ag.name, "ask")
-        self.rules.append(f"ask_alternative_{rc}_{c} : {head}\n  -o !peval vnil vnil vnil {cond} (vbool tt)\n"
-                          f"  -o {{{keep} * kill Ik (k_switch {c})}}.")
-
-    def _code(self, sites: list[str]) -> str:
-        out = "cnil"
-        for s in reversed(sites):
-            out = f"(ccons {s} {out})"
-        return out
+        self.rules.append(Rule(f"ask_alternative_{rc}_{c}", [*head, q("!peval vnil vnil vnil {} (vbool tt)", cond)],
+                               [*keep, q("kill Ik (k_switch {})", c)]))
 
     # ------------------------------------------------------------ the whole spec
     def compile(self, request: a.Constraint) -> CompiledModel:
+        """The whole spec with ``request``: names, tables, rules, the initial context; checked
+        item by item on a copy of the framework, then the logic layer's candidates."""
         spec, m = self.spec, self.model
         self.where_cells: dict[str, list[str]] = m.where_cells
         self.field_types = m.field_types
@@ -1423,75 +1442,20 @@ class _Compiler:
                     self.field_types[key] = {f.name: self.checked.structs[key][f.name] for f in td.fields}
         self.initial_values()
         o = self.out
-        o.append("\n% ================================================================ compiled spec")
-        ids = 0
-        for ag in spec.agents:
-            m.agents[f"a_{ag.name}"] = ag.name
-            o.append(f"a_{ag.name} : agent.")
-            for v in ag.vars:
-                c = self.cell(ag.name, v.name)
-                m.cell_types[c] = self.checked.var_types.get((ag.name, v.name))
-                o.append(f"{c} : dest.")
-            for t in ag.tasks:
-                ids += 1
-                tc = self.task_c(ag.name, t.name)
-                m.tasks[tc] = (ag.name, t.name)
-                o.append(f"{tc} : task.")
-                o.append(f"id_{tc} : task_id {tc} {ids}.")
-                for r in t.recipes:
-                    rc = self.recipe_c(ag.name, t.name, r.name)
-                    m.recipes[rc] = (ag.name, t.name, r.name)
-                    o.append(f"{rc} : recipe.")
+        o.append(Comment("\n================================================================ compiled spec"))
+        self.declare_names()
         hdr = len(o)   # constraint declarations go here (they are known at the end)
         self.setup_clock()
-        # tasks: pre/post (symbolic), incompatible tasks (4.3), recipes
-        incompatible = incompatible_tasks(self.checked)
-        for ag in spec.agents:
-            for t in ag.tasks:
-                tc = self.task_c(ag.name, t.name)
-                pcx = _Ctx(self, ag, [], snapshot=True)
-                pcx.task, pcx.recipe, pcx.purpose = t.name, "", "post"
-                qualified = [self._qualify(e, ag.name) for e in t.pre]
-                # a pre-condition that calls a function is split into its conjuncts: those that call
-                # one are evaluated by the logic activation, the others are ordinary (sub-goaled)
-                qualified = [x for q in qualified
-                             for x in (a.conjuncts(q) if any(True for _ in a.calls(q)) else [q])]
-                pres = [self.pexp(q, pcx) if not any(True for _ in a.calls(q)) else self.logic_pre(ag, t, q)
-                        for q in qualified]
-                for p, q in zip(pres, qualified):
-                    self.predicates[p] = ag.name
-                    self.predicate_exprs.setdefault(p, (ag, q))
-                o.append(f"tpre_{tc} : tpre {tc} {self._list([f'(vpexp {p})' for p in pres])}.")
-                others = incompatible.get((ag.name, t.name), [])
-                if others:
-                    m.incompatible[(ag.name, t.name)] = list(others)
-                o.append(f"incompat_{tc} : incompat {tc} "
-                         f"{self._list([f'(vtsk {self.task_c(ag.name, u)})' for u in others])}.")
-                for i, e in enumerate(t.post):
-                    for conj in a.conjuncts(e):
-                        o.append(f"post_{tc}_{i}_{len(o)} : post {tc} (fatom {self.pexp(self._qualify(conj, ag.name), pcx)}).")
-                rcs = [f"(vrcp {self.recipe_c(ag.name, t.name, r.name)})" for r in t.recipes]
-                o.append(f"recipes_{tc} : recipes {tc} {self._list(rcs)}.")
+        self.task_tables()
         o.extend(self.domain_rules())
-        # recipe bodies
-        for ag in spec.agents:
+        for ag in spec.agents:   # recipe bodies
             for t in ag.tasks:
                 for r in t.recipes:
                     self.recipe(ag, t, r)
         if self.logic_pres:   # (the logic activation's phase and snapshot, only when a spec needs them)
-            o.append("h_lq : inst -> phase.\nlsnap : inst -> val -> type.")
+            o += [decl("h_lq", q("inst -> phase")), decl("lsnap", q("inst -> val -> type"))]
         started = self.start_code()   # initialisers run when the agents start (4.2)
-        # the request
-        top = spec.agent(request.target())
-        req_cst = self.cst_for(top, request.expr, top.name, purpose="request")
-        m.request_cst, m.request_agent = req_cst, top.name
-        writes = request.writes()
-        cells = [self.cell(top.name, w) for w in writes]
-        req_cst = self.where_cst(req_cst, cells)   # (a where clause its recipes do not use: a variant)
-        m.request_cst = req_cst
-        values = [self.request_value(v) for v in writes.values()]
-        self.note_where_hyps(req_cst, cells, values)
-        wvals = [self.const_value(v) for v in values]
+        sent = self.request(request)
         # constraints: identities, predicates, select and final rules
         self.key_hypotheses()
         for c in sorted(self.cst_pexp):
@@ -1500,131 +1464,204 @@ class _Compiler:
         decls = []   # (after the constraints' rules: a logic activation calls functions)
         cst_ids = {c: i for i, c in enumerate((c for c in sorted(m.csts) if c not in self.variant_of), start=1)}
         for c in sorted(m.csts):
-            decls.append(f"{c} : cst.")
-            decls.append(f"id_{c} : cst_id {c} {cst_ids[self.variant_of.get(c, c)]}.")
-        decls += [f"{fc} : fn." for fc in sorted(m.functions)]
+            decls.append(decl(c, "cst"))
+            decls.append(fact(f"id_{c}", "cst_id {} {}", c, cst_ids[self.variant_of.get(c, c)]))
+        decls += [decl(fc, "fn") for fc in sorted(m.functions)]
         o[hdr:hdr] = decls
         if self.crashes:
             o.extend(self.crash_declarations(sum(len(ag.tasks) for ag in spec.agents)))
         if self.clock:
             o.extend(self.time_declarations())
         # the predicate of each constraint, for the calling-context search (framework: retask)
-        o.extend(f"cpred_{c} : cpred {c} {p}." for c, p in sorted(self.cst_pexp.items()))
+        o.extend(fact(f"cpred_{c}", "cpred {} {}", c, p) for c, p in sorted(self.cst_pexp.items()))
         self.guard_crashed()
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake|...]
         by_num = self.sites_by_number()
         for r in self.rules:
-            name = r.split(" : ", 1)[0]
-            site = by_num.get(name.split("_", 1)[0]) if name.startswith("pp") else None
+            site = by_num.get(r.name.split("_", 1)[0]) if r.name.startswith("pp") else None
             if site is not None:
-                m.rule_sites["st" + name[2:]] = site
-                r = "st" + r[2:]
-            o.append(r)
+                r.name = "st" + r.name[2:]
+                m.rule_sites[r.name] = site
+                r.pos = m.sites[site].pos
+            o.append(r.item())
         # functions and outcomes
         if self.functional == "abstract":
             for fc, (owner, name, rty) in sorted(self.pending_fns.items()):
                 o.extend(self.outcome_rules(fc, owner, name, rty))
-        # initial context
-        init = [f"fails_left {fc} {nat(k)}" for fc, k in sorted(self.failure_budgets.items())]
-        for ag in spec.agents:
-            init.append(f"mask a_{ag.name} vnil")
+        start = self.initial_context(started, sent)
+        m.init = format_term(start)
+        failed_item: list = []
+        try:
+            sig = extend_framework([x for x in o if not isinstance(x, Comment)], "<compiled model>", failed_item)
+        except RoarError as exc:
+            raise self.located(exc, failed_item) from None
+        # the logic layer: candidates of every predicate, by proof search (8.2)
+        # (the initial context last: `roar-verify clf` runs the printed model's #exec once every
+        # table it reads is declared)
+        rest = self.candidates(sig) + [Comment("\nthe initial context"), exec_(start)]
+        m.items = tuple(o + rest)
+        m.spec_text = format_items(m.items)
+        m.text = framework_text() + m.spec_text
+        m._program = Program(extend_signature(sig, [x for x in rest if not isinstance(x, Comment)],
+                                              "<compiled model>"))
+        return m
+
+    def declare_names(self) -> None:
+        """One constant per agent, variable (a cell), task (with its identity number) and recipe."""
+        m, o = self.model, self.out
+        ids = 0
+        for ag in self.spec.agents:
+            m.agents[f"a_{ag.name}"] = ag.name
+            o.append(decl(f"a_{ag.name}", "agent"))
             for v in ag.vars:
                 c = self.cell(ag.name, v.name)
-                init.append(f"contains {c} {self.initial(ag, v)}")
-        failed, sent = "vnil", "rs r0 s_sent"
+                m.cell_types[c] = self.checked.var_types.get((ag.name, v.name))
+                o.append(decl(c, "dest"))
+            for t in ag.tasks:
+                ids += 1
+                tc = self.task_c(ag.name, t.name)
+                m.tasks[tc] = (ag.name, t.name)
+                o.append(decl(tc, "task"))
+                o.append(fact(f"id_{tc}", "task_id {} {}", tc, ids))
+                for r in t.recipes:
+                    rc = self.recipe_c(ag.name, t.name, r.name)
+                    m.recipes[rc] = (ag.name, t.name, r.name)
+                    o.append(decl(rc, "recipe"))
+
+    def task_tables(self) -> None:
+        """The tables of each task the logic layer reads: pre-conditions (symbolic, or evaluated by
+        the logic activation when they call a function), post-conditions, the tasks it masks
+        (4.3, incompatible tasks), its recipes."""
+        m, o = self.model, self.out
+        incompatible = incompatible_tasks(self.checked)
+        for ag in self.spec.agents:
+            for t in ag.tasks:
+                tc = self.task_c(ag.name, t.name)
+                pcx = _Ctx(self, ag, [], snapshot=True)
+                pcx.task, pcx.recipe, pcx.purpose = t.name, "", "post"
+                qualified = [self._qualify(e, ag.name) for e in t.pre]
+                # a pre-condition that calls a function is split into its conjuncts: those that call
+                # one are evaluated by the logic activation, the others are ordinary (sub-goaled)
+                qualified = [x for e in qualified
+                             for x in (a.conjuncts(e) if any(True for _ in a.calls(e)) else [e])]
+                pres = [self.pexp(e, pcx) if not any(True for _ in a.calls(e)) else self.logic_pre(ag, t, e)
+                        for e in qualified]
+                for p, cond in zip(pres, qualified):
+                    self.predicates[p] = ag.name
+                    self.predicate_exprs.setdefault(p, (ag, cond))
+                o.append(fact(f"tpre_{tc}", "tpre {} {}", tc, vlist([q("vpexp {}", p) for p in pres])))
+                others = incompatible.get((ag.name, t.name), [])
+                if others:
+                    m.incompatible[(ag.name, t.name)] = list(others)
+                o.append(fact(f"incompat_{tc}", "incompat {} {}", tc,
+                              vlist([q("vtsk {}", self.task_c(ag.name, u)) for u in others])))
+                for i, e in enumerate(t.post):
+                    for conj in a.conjuncts(e):
+                        o.append(fact(f"post_{tc}_{i}_{len(o)}", "post {} (fatom {})", tc,
+                                      self.pexp(self._qualify(conj, ag.name), pcx)))
+                rcs = [q("vrcp {}", self.recipe_c(ag.name, t.name, r.name)) for r in t.recipes]
+                o.append(fact(f"recipes_{tc}", "recipes {} {}", tc, vlist(rcs)))
+
+    def request(self, request: a.Constraint) -> tuple:
+        """The request from outside: its constraint (a variant when its where clause is one no
+        recipe sends) and its where values; what :meth:`initial_context` sends."""
+        m = self.model
+        top = self.spec.agent(request.target())
+        req_cst = self.cst_for(top, request.expr, top.name, purpose="request")
+        m.request_cst, m.request_agent = req_cst, top.name
+        writes = request.writes()
+        cells = [self.cell(top.name, w) for w in writes]
+        req_cst = self.where_cst(req_cst, cells)   # (a where clause its recipes do not use: a variant)
+        m.request_cst = req_cst
+        values = [self.request_value(v) for v in writes.values()]
+        self.note_where_hyps(req_cst, cells, values)
+        return top, req_cst, cells, [self.const_value(v) for v in values]
+
+    def initial_context(self, started: Optional[list], sent: tuple) -> S.Expr:
+        """The initial context: the failure budgets, every agent's empty mask and cells with their
+        initial values, the clock, the crash plan, the start code, and the request ``r0``."""
+        top, req_cst, cells, wvals = sent
+        init = [q("fails_left {} {}", fc, nat(k)) for fc, k in sorted(self.failure_budgets.items())]
+        for ag in self.spec.agents:
+            init.append(q("mask {} vnil", f"a_{ag.name}"))
+            for v in ag.vars:
+                c = self.cell(ag.name, v.name)
+                init.append(q("contains {} {}", c, self.initial(ag, v)))
+        failed, gate = q("vnil"), q("rs r0 s_sent")
         if self.clock:
-            init.append("clock 0 * tmrs vnil")
+            init += [q("clock 0"), q("tmrs vnil")]
         if self.crashes:
             init.extend(self.crash_init())
             if top.name in self.crash_agents:   # sent in epoch 0
-                failed = "(vcons (vtsk t_ep0) vnil)"
+                failed = q("vcons (vtsk t_ep0) vnil")
             if not self.crashes.scheduled:       # the crash plan is decided first (crash_plan_...)
-                sent = "cgate z r0"
+                gate = q("cgate z r0")
         if started:   # the agents start first: their initialisers that call the functional layer
-            init.append(started)
-            sent = "sgate r0"
-        init.append(f"rq r0 a_{top.name} {req_cst} itop k_make * {sent} * ppz r0 ff"
-                    f" * hs r0 h_select vnil {failed} vnil (vsome {self._list([f'(vpair (vcell {c}) {v})' for c, v in zip(cells, wvals)])})")
-        m.init = "Exists r0. " + " * ".join(init)
-        o.append(f"\n#exec * {m.init}.")
-        body = "\n".join(o) + "\n"
-        try:
-            sig = extend_framework(body, "<compiled model>")
-        except RoarError as exc:
-            raise self.located(exc, o) from None
-        # the logic layer: candidates of every predicate, by proof search (8.2)
-        cands = self.candidates(sig)
-        m.spec_text = body + cands
-        m.text = framework_text() + m.spec_text
-        m._program = Program(extend_signature(sig, cands, "<compiled model>"))
-        return m
+            init += started
+            gate = q("sgate r0")
+        init += [q("rq r0 {} {} itop k_make", f"a_{top.name}", req_cst), gate, q("ppz r0 ff"),
+                 q("hs r0 h_select vnil {} vnil (vsome {})", failed,
+                   vlist([q("vpair (vcell {}) {}", c, v) for c, v in zip(cells, wvals)]))]
+        return S.Exists(BUILT, "r0", None, tensor(init))
 
-    def located(self, exc: RoarError, out: list[str]) -> RoarError:
-        """A declaration the compiler wrote that does not check is a bug of the compiler, not of
+    def located(self, exc: RoarError, failed: list) -> RoarError:
+        """A declaration the compiler built that does not check is a bug of the compiler, not of
         the spec; the error points at the spec's statement the declaration was compiled from
-        (its site), with the generated line, so the report says where to look."""
-        if exc.pos is None or exc.pos.file != "<compiled model>":
+        (its site), with the declaration, so the report says where to look."""
+        if not failed or not isinstance(failed[0], S.Decl):
             return exc
-        line, decl = 1, ""
-        for text in out:
-            n = text.count("\n") + 1
-            if line <= exc.pos.line < line + n:
-                decl = text
-                break
-            line += n
-        name = decl.split(" : ", 1)[0].strip()
-        site = self.model.site_of_rule(name)
-        where = f"{site.kind} {site.text!r}" if site is not None else f"declaration {name!r}"
-        first = decl.strip().splitlines()[0] if decl.strip() else ""
+        decl_ = failed[0]
+        site = self.model.site_of_rule(decl_.name)
+        where = f"{site.kind} {site.text!r}" if site is not None else f"declaration {decl_.name!r}"
         return RoarError(f"internal error: the CLF compiled for {where} does not check: {exc.message}",
                          site.pos if site is not None else None,
-                         notes=[f"<compiled model>:{exc.pos.line}:{exc.pos.col}: {first}",
+                         notes=[f"<compiled model>: {format_items([decl_]).strip()}",
                                 "this is a bug of roar-verify's compiler, not of the spec: please report it"])
 
     # ------------------------------------------------------------ crashes (opt-in)
-    def stamp(self, target: str) -> tuple[str, str, str]:
+    def stamp(self, target: str) -> tuple[list, list, S.Expr]:
         """A request sent to ``target`` carries the target's epoch as the last entry of its
-        failed-task list (no plan uses the sentinel task): (premise, output, failed-task list)."""
+        failed-task list (no plan uses the sentinel task): (premises, conclusions, failed-task list)."""
         if target not in self.crash_agents:
-            return "", "", "vnil"
-        v = f"Cep_{target}"
-        return f" -o cep a_{target} {v}", f" * cep a_{target} {v}", f"(vcons (vtsk {v}) vnil)"
+            return [], [], q("vnil")
+        epoch = q("cep {} {}", f"a_{target}", f"Cep_{target}")
+        return [epoch], [epoch], q("vcons (vtsk {}) vnil", f"Cep_{target}")
 
-    def crash_declarations(self, ids: int) -> list[str]:
+    def crash_declarations(self, ids: int) -> list:
         """The epoch sentinels of the agents that may crash (up in even epochs, down in odd
         ones), their tables, and the crash plan decided at the start (exploration)."""
         cr = self.crashes
         top = 2 * cr.bound
-        out = ["\n% crashes (opt-in): the rules, epochs, the crash plan (docs/semantics.md, Crashes)",
-               CRASH_RULES_TEXT.strip()]
+        out: list = [Comment("\ncrashes (opt-in): the rules, epochs, the crash plan (docs/semantics.md, Crashes)"),
+                     *parsed_part(CRASH_RULES_TEXT, "<framework: crashes>")]
         if self.logic_pres:
-            out.append(CRASH_LOGIC_TEXT.strip())
+            out += parsed_part(CRASH_LOGIC_TEXT, "<framework: crashes and the logic activation>")
         for k in range(top + 1):
             self.model.epochs[f"t_ep{k}"] = k
-            out.append(f"t_ep{k} : task.")
-            out.append(f"id_t_ep{k} : task_id t_ep{k} {ids + 1 + k}.")
-        out += [f"epu_{k} : ep_up t_ep{k}." for k in range(0, top + 1, 2)]
-        out += [f"epn_{k} : ep_next t_ep{k} t_ep{k + 1}." for k in range(top)]
-        out += [f"eps_{f}_{c} : ep_stale t_ep{f} t_ep{c}." for c in range(top + 1) for f in range(c + 1)
-                if f < c or c % 2 == 1]
+            out.append(decl(f"t_ep{k}", "task"))
+            out.append(fact(f"id_t_ep{k}", "task_id {} {}", f"t_ep{k}", ids + 1 + k))
+        out += [fact(f"epu_{k}", "ep_up {}", f"t_ep{k}") for k in range(0, top + 1, 2)]
+        out += [fact(f"epn_{k}", "ep_next {} {}", f"t_ep{k}", f"t_ep{k + 1}") for k in range(top)]
+        out += [fact(f"eps_{f}_{c}", "ep_stale {} {}", f"t_ep{f}", f"t_ep{c}") for c in range(top + 1)
+                for f in range(c + 1) if f < c or c % 2 == 1]
         if not cr.scheduled:
             # which agents may crash is decided before anything else happens, each once: an
             # armed agent's crash is then a step of its own fairness group (weak fairness makes
             # it happen), and a run in which it never crashes is the run of the other branch
             n = len(cr.agents)
             for i, ag in enumerate(cr.agents):
-                nxt = "rs R s_sent" if i == n - 1 else f"cgate {nat(i + 1)} R"
-                out.append(f"may_crash_a_{ag} : cgate {nat(i)} R -o {{carmed a_{ag} * {nxt}}}.")
-                out.append(f"never_crash_a_{ag} : cgate {nat(i)} R -o {{{nxt}}}.")
+                nxt = q("rs R s_sent") if i == n - 1 else q("cgate {} R", nat(i + 1))
+                out.append(Rule(f"may_crash_a_{ag}", [q("cgate {} R", nat(i))], [q("carmed {}", f"a_{ag}"), nxt]).item())
+                out.append(Rule(f"never_crash_a_{ag}", [q("cgate {} R", nat(i))], [nxt]).item())
         # neither a crash nor a comeback is a step of the agent itself
         self.model.fair_outcomes.update({"crash": "crash", "back": "coming back", "back_armed": "coming back"})
         return out
 
-    def crash_init(self) -> list[str]:
+    def crash_init(self) -> list:
         cr = self.crashes
-        init = [f"cleft {nat(cr.bound)}"] + [f"cep a_{ag} t_ep0" for ag in cr.agents]
+        init = [q("cleft {}", nat(cr.bound))] + [q("cep {} t_ep0", f"a_{ag}") for ag in cr.agents]
         if cr.scheduled:
-            init += [f"carmed a_{ag}" for ag in cr.agents]
+            init += [q("carmed {}", f"a_{ag}") for ag in cr.agents]
         return init
 
     def guard_crashed(self) -> None:
@@ -1636,61 +1673,63 @@ class _Compiler:
             return
         by_num = self.sites_by_number()
         start = {by_num[x.split("_", 1)[0]] for x in self.start_sites}
-        for i, rule in enumerate(self.rules):
-            name = rule.split(" : ", 1)[0]
-            c = by_num.get(name.split("_", 1)[0]) if name.startswith("pp") else None
+        lq_handler = q("h_lq I")
+        for rule in self.rules:
+            c = by_num.get(rule.name.split("_", 1)[0]) if rule.name.startswith("pp") else None
             if c in start:
                 continue   # (the start: before any request, so before any crash)
             if c is not None:
                 site = self.model.sites[c]
                 agent = site.agent
+                reads_lq = any(head_of(p) == "hs" and args_of(p)[1] == lq_handler for p in rule.premises)
                 how = ("chk" if site.kind == "pre" else "chkcall" if site.const in self.checker_sites
-                       else ("hs" if "hs R (h_lq I)" in rule else "lq") if site.const in self.logic_sites else "act")
-            elif name in self.guards:
-                agent, how = self.guards[name]
+                       else ("hs" if reads_lq else "lq") if site.const in self.logic_sites else "act")
+            elif rule.name in self.guards:
+                agent, how = self.guards[rule.name]
             else:
                 continue
             if agent not in self.crash_agents:
                 continue
             v = f"Cep_{agent}"
-            prem, outs = [], []
+            prem = []
             if how in ("hs", "chk"):       # the rule reads the request's handler (failed tasks F)
                 fl = "F"
             elif how == "ask":             # the activation Ik of the calling context, of request Rk1
-                prem.append("hs Rk1 Phg ECg Fg Plg Wg")
+                prem.append(q("hs Rk1 Phg ECg Fg Plg Wg"))
                 fl = "Fg"
             elif how == "lq":              # the logic activation I, deciding on request Rg
-                prem.append("hs Rg (h_lq I) ECg Fg Plg Wg")
+                prem.append(q("hs Rg (h_lq I) ECg Fg Plg Wg"))
                 fl = "Fg"
             elif how == "chkcall":
-                prem += ["chk I Rg Rcg Ng", "hs Rg Phg ECg Fg Plg Wg"]
+                prem += [q("chk I Rg Rcg Ng"), q("hs Rg Phg ECg Fg Plg Wg")]
                 fl = "Fg"
             else:                          # a recipe activation: its request's handler
-                if "act I R0 T0 Rc0 " not in rule:
-                    prem.append("act I R0 T0 Rc0 Ng")
-                prem.append("hs R0 Phg ECg Fg Plg Wg")
+                if not any(head_of(p) == "act" and args_of(p)[:4] == [q(x) for x in ("I", "R0", "T0", "Rc0")]
+                           for p in rule.premises):
+                    prem.append(q("act I R0 T0 Rc0 Ng"))
+                prem.append(q("hs R0 Phg ECg Fg Plg Wg"))
                 fl = "Fg"
             outs = list(prem)
-            if f"cep a_{agent} {v}" not in rule:
-                prem.append(f"cep a_{agent} {v}")
-                outs.append(f"cep a_{agent} {v}")
-            prem.append(f"!ep_cur {fl} {v}")
-            k, j = rule.rindex("-o {"), rule.rindex("}.")
-            self.rules[i] = (rule[:k] + "".join(f"-o {p} " for p in prem) + "\n  " + rule[k:j]
-                             + "".join(f" * {x}" for x in outs) + rule[j:])
+            epoch = q("cep {} {}", f"a_{agent}", v)
+            if not rule.has_premise(epoch):
+                prem.append(epoch)
+                outs.append(epoch)
+            prem.append(q("!ep_cur {} {}", fl, v))
+            rule.premises += prem
+            rule.conclusions += outs
 
-    def const_value(self, e: a.Expr) -> str:
+    def const_value(self, e: a.Expr) -> S.Expr:
         if isinstance(e, a.IntLit):
-            return f"(vnum {e.value})"
+            return q("vnum {}", e.value)
         if isinstance(e, a.DoubleLit):
-            return f"(vnum {num_lit(Fraction(repr(e.value)))})"
+            return q("vnum {}", num_tree(Fraction(repr(e.value))))
         if isinstance(e, a.BoolLit):
-            return "(vbool tt)" if e.value else "(vbool ff)"
+            return q("vbool tt") if e.value else q("vbool ff")
         if isinstance(e, a.StringLit):
-            return f"(vstr {str_lit(e.value)})"
+            return q("vstr {}", string(e.value))
         if isinstance(e, a.Unary) and e.op == "-" and isinstance(e.operand, (a.IntLit, a.DoubleLit)):
             v = e.operand.value
-            return f"(vnum {num_lit(-Fraction(repr(v)) if isinstance(v, float) else -v)})"
+            return q("vnum {}", num_tree(-Fraction(repr(v)) if isinstance(v, float) else -v))
         raise UnsupportedError(f"a request's where value must be a literal, not '{format_expr(e)}'", e.pos)
 
     def request_value(self, e: a.Expr) -> a.Expr:
@@ -1721,7 +1760,7 @@ class _Compiler:
         raise UnsupportedError(f"{what} is {v}, which has no exact decimal form (the model writes where values "
                                f"as decimal numbers)", e.pos)
 
-    def initial(self, ag: a.Agent, v: a.Var) -> str:
+    def initial(self, ag: a.Agent, v: a.Var) -> S.Expr:
         ty = self.checked.var_types.get((ag.name, v.name))
         if v.init is None or ag.reading_task(v) is not None:
             return self.default(ty)
@@ -1738,7 +1777,7 @@ class _Compiler:
         expression semantics (:func:`_fold`); one that calls the functional layer, or reads a
         variable initialised so, is evaluated when the agent starts (:meth:`start_code`), as
         hyper runs the initialisers. Anything else is refused, located, with the reason."""
-        self.init_values: dict[tuple[str, str], Optional[str]] = {}
+        self.init_values: dict[tuple[str, str], Optional[S.Expr]] = {}
         self.started: list[tuple[a.Agent, a.Var]] = []   # evaluated at start, in declaration order
         for ag in self.spec.agents:
             known: dict[str, object] = {}    # variable -> its constant initial value
@@ -1786,7 +1825,7 @@ class _Compiler:
                 known[v.name] = value
                 self.init_values[(ag.name, v.name)] = text
 
-    def logic_pre(self, ag: a.Agent, t: a.Task, q: a.Expr) -> str:
+    def logic_pre(self, ag: a.Agent, t: a.Task, cond: a.Expr) -> S.Expr:
         """A task pre-condition that calls the functional layer: in the tables it is a cell of its
         own, ``lp_AGENT_K``, that only the logic layer's snapshot holds (no ``contains`` fact): its
         value is the condition evaluated, calls and all, by the logic activation that runs before
@@ -1794,11 +1833,11 @@ class _Compiler:
         entails it (post-conditions call no function), so a false one is never sub-goaled."""
         got = self.logic_pres.setdefault(ag.name, [])
         cell = f"lp_{ag.name}_{len(got) + 1}"
-        got.append((cell, q, t))
-        self.out.append(f"{cell} : dest.")
-        p = f"(pc {cell})"
+        got.append((cell, cond, t))
+        self.out.append(decl(cell, "dest"))
+        p = q("pc {}", cell)
         self.predicates[p] = ag.name
-        self.predicate_exprs.setdefault(p, (ag, q))
+        self.predicate_exprs.setdefault(p, (ag, cond))
         return p
 
     def logic_activation(self, c: str, tag: a.Agent) -> list[str]:
@@ -1814,42 +1853,42 @@ class _Compiler:
         code: list[str] = []
         spans = []   # per pre-condition: its call sites (with their pushes before them), its end
         divs: list[tuple[str, int, list]] = []   # per site: its pushes, its divisions (site, divisor)
-        for cell, q, t in self.logic_pres[tag.name]:
+        for cell, pre, t in self.logic_pres[tag.name]:
             cx = _Ctx(self, tag, [], snapshot=True, task=t.name)
             calls: list[tuple[str, int]] = []
-            text = f"pre-condition of task {t.name}: {format_expr(q)}"
-            self.logic_calls(q, cx, calls, divs, text)
-            cond = self.pexp(q, cx)
-            s = self.site("lpre", tag, t.name, "", q.pos, text)
+            text = f"pre-condition of task {t.name}: {format_expr(pre)}"
+            self.logic_calls(pre, cx, calls, divs, text)
+            cond = self.pexp(pre, cx)
+            s = self.site("lpre", tag, t.name, "", pre.pos, text)
             self.logic_sites.add(s)
             E = cx.envpat()
-            self.rules.append(
-                f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o lsnap I S -o !peval S {E} vnil {cond} X"
-                f"\n  -o {{ctl I m_run C (vcons X E) * rstat I go * lsnap I S}}.")
+            self.rules.append(Rule(
+                s, [q("ctl I m_run (ccons {} C) {}", s, E), q("rstat I go"), q("lsnap I S"),
+                    q("!peval S {} vnil {} X", E, cond)],
+                [q("ctl I m_run C (vcons X E)"), q("rstat I go"), q("lsnap I S")]))
             divs.append((s, cx.pushed, [(self.division_site(tag, t.name, "", d, text), self.pexp(d, cx))
-                                        for d in self.own_divisors(q)]))
+                                        for d in self.own_divisors(pre)]))
             code += [x for x, _n in calls] + [s]
             spans.append((calls + [(s, cx.pushed)], len(code)))
         found = {x: (pushed, ds) for x, pushed, ds in divs}
         for calls, end in spans:
-            rest = self._code(code[end:])
+            rest = code_list(code[end:])
             for x, pushed in calls:
-                E = "E"
-                for i in range(pushed):
-                    E = f"(vcons H{i + 1} {E})"
+                E = pushed_env(pushed)
                 if not x.endswith("_lpre"):
-                    self.rules.append(f"{x}_false : ctl I (m_call D {x}) _ {E} -o callfail D -o lsnap I S"
-                                      f"\n  -o {{ctl I m_run {rest} (vcons (vbool ff) E) * lsnap I S}}.")
+                    self.rules.append(Rule(f"{x}_false", [q("ctl I (m_call D {}) _ {}", x, E), q("callfail D"),
+                                                          q("lsnap I S")],
+                                           [q("ctl I m_run {} (vcons (vbool ff) E)", rest), q("lsnap I S")]))
                 # a division by zero where the site evaluates: the pre-condition cannot be evaluated,
                 # so it is false (its task is unusable for this decision), and the division goes in
                 # the request's error context (the located reason if the request then fails)
-                hs = "hs R (h_lq I) EC F Pl W"
                 for k, (where, d) in enumerate(found[x][1]):
-                    self.rules.append(
-                        f"{x}_div{chr(97 + k)} : ctl I m_run (ccons {x} C) {E} -o rstat I go -o lsnap I S -o {hs}"
-                        f"\n  -o !peval S {E} vnil {d} (vnum 0) -o !ec_add (k_local {where}) EC EC1"
-                        f"\n  -o {{ctl I m_run {rest} (vcons (vbool ff) E) * rstat I go * lsnap I S"
-                        f" * {hs.replace(' EC ', ' EC1 ')}}}.")
+                    self.rules.append(Rule(
+                        f"{x}_div{chr(97 + k)}",
+                        [q("ctl I m_run (ccons {} C) {}", x, E), q("rstat I go"), q("lsnap I S"), q(HS_LOGIC, "EC"),
+                         q("!peval S {} vnil {} (vnum 0)", E, d), q("!ec_add (k_local {}) EC EC1", where)],
+                        [q("ctl I m_run {} (vcons (vbool ff) E)", rest), q("rstat I go"), q("lsnap I S"),
+                         q(HS_LOGIC, "EC1")]))
         return code
 
     def logic_calls(self, e: a.Expr, cx: _Ctx, out: list, divs: Optional[list] = None, text: str = "") -> None:
@@ -1875,11 +1914,11 @@ class _Compiler:
             self.model.call_sites.setdefault(fc, []).append(e.pos)
             E = cx.envpat()
             vals = [f"A{i + 1}" for i in range(len(args))]
-            evals = "".join(f" -o !peval S {E} vnil {p} {v}" for p, v in zip(args, vals))
-            self.rules.append(
-                f"{s} : ctl I m_run (ccons {s} C) {E} -o rstat I go -o lsnap I S{evals}\n"
-                f"  -o {{Exists d. pending {fc} {self._list(vals)} d * ctl I (m_call d {s}) C {E} * rstat I go"
-                f" * lsnap I S}}.")
+            self.rules.append(Rule(
+                s, [q("ctl I m_run (ccons {} C) {}", s, E), q("rstat I go"), q("lsnap I S"),
+                    *(q("!peval S {} vnil {} {}", E, p, v) for p, v in zip(args, vals))],
+                [q("pending {} {} d", fc, vlist(vals)), q("ctl I (m_call d {}) C {}", s, E), q("rstat I go"),
+                 q("lsnap I S")], fresh=("d",)))
             out.append((s, cx.pushed))
             if divs is not None:
                 divs.append((s, cx.pushed, [(self.division_site(cx.agent, cx.task, "", d, text), self.pexp(d, cx))
@@ -1892,7 +1931,7 @@ class _Compiler:
             if isinstance(ch, a.Expr):
                 self.logic_calls(ch, cx, out, divs, text)
 
-    def start_code(self) -> Optional[str]:
+    def start_code(self) -> Optional[list]:
         """The initialisers that call the functional layer (or read a variable initialised so),
         run when the agents start, before the request from outside is sent (hyper runs them
         when the agent starts): an activation ``i_start`` of its own runs, in declaration order,
@@ -1902,7 +1941,7 @@ class _Compiler:
         its type's default. A division by zero in one is an error of the start: the request from
         outside fails at once, not sent, with the division as its error context (the agents cannot
         start: :meth:`division_failures`). The request is sent (``start_done``) when all are done.
-        Returns the code's text, or None when no variable needs it."""
+        Returns the facts that start it, or None when no variable needs it."""
         if not self.started:
             return None
         code: list[str] = []
@@ -1921,14 +1960,15 @@ class _Compiler:
             code += sites
             ends.append(([x for x in sites if self.model.sites[x].kind == "call"], len(code)))
         for calls, end in ends:
-            rest = self._code(code[end:])
+            rest = code_list(code[end:])
             for x in calls:   # a failed call: the variable keeps its default, the next one starts
-                self.rules.append(f"start_failed_{x[2:]} : ctl i_start (m_call D {x}) _ _ -o callfail D"
-                                  f"\n  -o {{ctl i_start m_run {rest} vnil}}.")
-        sent = "cgate z R" if self.crashes and not self.crashes.scheduled else "rs R s_sent"
-        self.rules.append(f"start_done : ctl i_start m_run cnil vnil -o rstat i_start go -o sgate R -o {{{sent}}}.")
-        self.out += ["i_start : inst.", "sgate : req -> type."]
-        return f"ctl i_start m_run {self._code(code)} vnil * rstat i_start go"
+                self.rules.append(Rule(f"start_failed_{x[2:]}", [q("ctl i_start (m_call D {}) _ _", x), q("callfail D")],
+                                       [q("ctl i_start m_run {} vnil", rest)]))
+        sent = q("cgate z R") if self.crashes and not self.crashes.scheduled else q("rs R s_sent")
+        self.rules.append(Rule("start_done", [q("ctl i_start m_run cnil vnil"), q("rstat i_start go"), q("sgate R")],
+                               [sent]))
+        self.out += [decl("i_start", "inst"), decl("sgate", q("req -> type"))]
+        return [q("ctl i_start m_run {} vnil", code_list(code)), q("rstat i_start go")]
 
     def default_py(self, ty: Optional[str]):
         """A type's default as a Python value (:func:`_fold`'s values)."""
@@ -1976,63 +2016,59 @@ class _Compiler:
         for prefix in ("select_", "reselect_", "final_", "ensure_broken_", "ensure_broken_top_", "ensure_check_"):
             self.guards[prefix + c] = (tag.name, "hs")
         pred_p = self.cst_pexp[c]
-        rq = f"rq R a_{tag.name} {c} J K"
+        rq = q("rq R {} {} J K", f"a_{tag.name}", c)
+        mask = f"a_{tag.name}"
 
         def snap(values):
-            return self._list([f"(vpair (vcell {cell}) {values[cell]})" for cell in cells])
-        reads = "".join(f" -o contains {cell} {v}" for cell, v in vars_.items())
-        back = "".join(f" * contains {cell} {v}" for cell, v in vars_.items())
+            return vlist([q("vpair (vcell {}) {}", cell, values[cell]) for cell in cells])
+        reads = [q("contains {} {}", cell, v) for cell, v in vars_.items()]
+        back = list(reads)
         # first selection: the logic layer decides with the where values in place of the
         # variables they write; an accepted constraint writes them (framework: where_write)
         newv = dict(vars_)
         newv.update(wvars)
-        wl = self._list([f"(vpair (vcell {w}) {wvars[w]})" for w in where])
+        wl = vlist([q("vpair (vcell {}) {}", w, wvars[w]) for w in where])
         # the decision records the tree it commits as the handler's plan at once (an abort that came
         # before tasks_chosen would leave it in the mask: framework, `committed`)
-        plan, pl = " -o !committed D Pl1", "Pl1"
+        plan = q("!committed D Pl1")
         # a division by zero in the predicate: it cannot be evaluated (its rules below would be
         # disabled); per divisor, where the predicate is evaluated, a rule that fires when the divisor
         # is 0 and gives the located reason: the decision fails the request, the final check finds
         # the constraint violated, a held ensure is broken (each with the division in the error
         # context); see constraint_divisions
         zeros = self.constraint_divisions(c)
-        first = len(self.rules)
         if tag.name in self.logic_pres:
             self.logic_select(c, tag, rq, reads, back, snap(newv), snap(vars_), wl, pred_p)
         else:
             zero, ec = self.pre_division_premise(tag, snap(newv))
-            self.rules.append(
-                f"select_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq} -o mask a_{tag.name} M{reads}\n"
-                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(newv)} F MT D{zero} -o !commit D R M M1{plan}\n"
-                f"  -o {{hs R (h_dec D) {ec} F {pl} (vsome {wl}) * rs R s_pending * {rq} * mask a_{tag.name} M1{back}}}.")
+            self.rules.append(Rule(
+                f"select_{c}",
+                [q("hs R h_select EC F Pl (vsome {})", wl), q("rs R s_pending"), rq, q("mask {} M", mask), *reads,
+                 q("!mtasks M MT"), q("!decide_k K {} {} F MT D", pred_p, snap(newv)), *zero,
+                 q("!commit D R M M1"), plan],
+                [q("hs R (h_dec D) {} F Pl1 (vsome {})", ec, wl), q("rs R s_pending"), rq, q("mask {} M1", mask),
+                 *back]))
             zero, ec = self.pre_division_premise(tag, snap(vars_))
-            self.rules.append(
-                f"reselect_{c} : hs R h_select EC F Pl vnone -o {rq} -o mask a_{tag.name} M{reads}\n"
-                f"  -o !mtasks M MT -o !decide_k K {pred_p} {snap(vars_)} F MT D{zero} -o !commit D R M M1{plan}\n"
-                f"  -o {{hs R (h_dec D) {ec} F {pl} vnone * {rq} * mask a_{tag.name} M1{back}}}.")
-        self.rules.append(
-            f"final_{c} : hs R h_final EC F Pl W -o {rq}{reads}\n"
-            f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool B)\n"
-            f"  -o {{hs R (h_verdict B) EC F Pl W * {rq}{back}}}.")
+            self.rules.append(Rule(
+                f"reselect_{c}",
+                [q("hs R h_select EC F Pl vnone"), rq, q("mask {} M", mask), *reads,
+                 q("!mtasks M MT"), q("!decide_k K {} {} F MT D", pred_p, snap(vars_)), *zero,
+                 q("!commit D R M M1"), plan],
+                [q("hs R (h_dec D) {} F Pl1 vnone", ec), rq, q("mask {} M1", mask), *back]))
+        self.rules.append(Rule(
+            f"final_{c}", [q("hs R h_final EC F Pl W"), rq, *reads,
+                           q("!peval {} vnil vnil {} (vbool B)", snap(vars_), pred_p)],
+            [q("hs R (h_verdict B) EC F Pl W"), rq, *back]))
+        # a held ensure is re-checked (4.4, 5.2): when its predicate stops holding, the request
+        # goes to temporary failure with the breach in its error context, its tasks are released,
+        # it decides again, and its emitter pauses meanwhile (figure 3); timed, at its period
+        breach = [q("!peval {} vnil vnil {} (vbool ff)", snap(vars_), pred_p), q("!ec_broke {} EC EC1", c)]
         if c in self.eperiods:
-            self.timed_ensure_rules(c, tag, rq, reads, back, snap(vars_), pred_p)
-        elif c in self.ensured:
-            # a held ensure is re-checked (4.4, 5.2): when its predicate stops holding, the
-            # request goes to temporary failure with the breach in its error context, its tasks
-            # are released, it decides again, and its emitter pauses meanwhile (figure 3)
-            ens = f"rq R a_{tag.name} {c} J k_ensure"
-            head = (f"hs R h_held EC F Pl W -o rs R s_success -o {ens} -o mask a_{tag.name} M -o !mrm M Pl M1{reads}\n"
-                    f"  -o !peval {snap(vars_)} vnil vnil {pred_p} (vbool ff) -o !ec_broke {c} EC EC1")
-            again = (f"hs R h_select EC1 F vnil vnone * rs R s_tempfail * {ens}"
-                     f" * mask a_{tag.name} M1{back}")
-            self.rules.append(
-                f"ensure_broken_{c} : {head}\n"
-                f"  -o rstat J Z -o !child_pause Z Z1 -o act J R0 T0 Rc0 N0 -o rs R0 S0 -o !shown Z Z1 S0 S1\n"
-                f"  -o {{{again} * rstat J Z1 * act J R0 T0 Rc0 N0 * rs R0 S1}}.")
-            self.rules.append(
-                f"ensure_broken_top_{c} : {head} -o !detached J\n  -o {{{again}}}.")
-        for k, (where, d) in enumerate(zeros):
-            self.division_decisions(c, tag, first, k, where, d, rq, reads, back, snap(newv), snap(vars_), wl, pred_p)
+            self.timed_ensure_check(c, tag, reads, back, snap(vars_), pred_p)
+        if c in self.eperiods or c in self.ensured:
+            self.broken_rules(c, tag, reads, back, breach, "")
+        for k, (site, d) in enumerate(zeros):
+            self.division_decisions(c, tag, k, site, d, rq, reads, back, snap(newv), snap(vars_), wl)
 
     def constraint_divisions(self, c: str) -> list[tuple[str, str]]:
         """The divisions of constraint ``c``'s predicate: per divisor, the site naming it and the
@@ -2042,17 +2078,17 @@ class _Compiler:
         return [(self.division_site(tag, "", "", d, f"constraint {self.model.csts[c][1]}"), self.pexp(d, pcx))
                 for d in self.own_divisors(pred)]
 
-    def pre_division_premise(self, tag: a.Agent, snapshot: str) -> tuple[str, str]:
-        """The premise a decision on a constraint sent to ``tag`` adds when ``tag``'s task
+    def pre_division_premise(self, tag: a.Agent, snapshot: S.Expr) -> tuple[list, str]:
+        """The premises a decision on a constraint sent to ``tag`` adds when ``tag``'s task
         pre-conditions divide (:meth:`pre_divisions`), and the error context it leaves: a decision
         that finds no task puts the first of those divisions whose divisor is 0 on ``snapshot`` in
         the request's error context (framework: ``dec_zero``, ``ec_opt``), the located reason when
-        the request then fails. ("", "EC") when they do not divide."""
+        the request then fails. ([], "EC") when they do not divide."""
         pres = self.pre_divisions(tag)
         if not pres:
-            return "", "EC"
-        divs = self._list([f"(vpair (vpexp {d}) (vsite {w}))" for w, d in pres])
-        return f" -o !dec_zero D {snapshot} {divs} O -o !ec_opt O EC EC1", "EC1"
+            return [], "EC"
+        divs = vlist([q("vpair (vpexp {}) (vsite {})", d, w) for w, d in pres])
+        return [q("!dec_zero D {} {} O", snapshot, divs), q("!ec_opt O EC EC1")], "EC1"
 
     def pre_divisions(self, ag: a.Agent) -> list[tuple[str, str]]:
         """The divisions of ``ag``'s task pre-conditions that the decision's search evaluates (those
@@ -2067,113 +2103,123 @@ class _Compiler:
             for t in ag.tasks:
                 for e in t.pre:
                     calls = any(True for _ in a.calls(e))
-                    for q in (a.conjuncts(e) if calls else [e]):
-                        if any(True for _ in a.calls(q)):
+                    for conj in (a.conjuncts(e) if calls else [e]):
+                        if any(True for _ in a.calls(conj)):
                             continue
-                        text = f"pre-condition of task {t.name}: {format_expr(q)}"
+                        text = f"pre-condition of task {t.name}: {format_expr(conj)}"
                         got += [(self.division_site(ag, t.name, "", d, text), self.pexp(self._qualify(d, ag.name), pcx))
-                                for d in self.own_divisors(q)]
+                                for d in self.own_divisors(conj)]
             known[ag.name] = got
         return known[ag.name]
 
-    def division_decisions(self, c: str, tag: a.Agent, first: int, k: int, where: str, d: str, rq: str,
-                           reads: str, back: str, snap_w: str, snap: str, wl: str, pred_p: str) -> None:
+    def division_decisions(self, c: str, tag: a.Agent, k: int, where: str, d: S.Expr, rq: S.Expr,
+                           reads: list, back: list, snap_w: S.Expr, snap: S.Expr, wl: S.Expr) -> None:
         """The rules of :meth:`constraint_rules` for a divisor ``d`` of ``c``'s predicate that is 0
         (site ``where``): the decision (``select_cN``, ``reselect_cN``; with a logic activation, the
         decision after it) fails the request, as when there is no task (4.3: the constraint cannot
         be decided), the final check gives the verdict false (the constraint is not established),
-        and a held ensure is broken (the ensure re-check rules, timed or not, from ``first`` on,
-        copied with the divisor's premise). Each adds the division to the error context."""
+        and a held ensure is broken (:meth:`broken_rules` with the division as the breach). Each
+        adds the division to the error context."""
         n = chr(97 + k)
-        ec = f"-o !ec_add (k_local {where}) EC EC1"
-        fail = f"rs R s_failure * ecf R EC1 * {rq}"
-        names = []
+        ec = q("!ec_add (k_local {}) EC EC1", where)
+        fail = [q("rs R s_failure"), q("ecf R EC1"), rq]
+        names = [f"select_{c}_div{n}"]
         if tag.name in self.logic_pres:
             # (the predicate reads no pre-condition cell: the snapshot the logic activation took)
-            names.append(f"select_{c}_div{n}")
-            self.rules.append(
-                f"{names[-1]} : hs R (h_lq I) EC F Pl W -o lsnap I S -o ctl I m_run cnil _ -o rstat I go -o {rq}"
-                f" -o rs R _\n  -o !peval S vnil vnil {d} (vnum 0) {ec}\n  -o {{{fail}}}.")
+            self.rules.append(Rule(
+                names[-1], [q(HS_LOGIC, "EC"), q("lsnap I S"), q("ctl I m_run cnil _"), q("rstat I go"), rq,
+                            q("rs R _"), q("!peval S vnil vnil {} (vnum 0)", d), ec], fail))
         else:
-            names.append(f"select_{c}_div{n}")
-            self.rules.append(
-                f"{names[-1]} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq}{reads}\n"
-                f"  -o !peval {snap_w} vnil vnil {d} (vnum 0) {ec}\n  -o {{{fail}{back}}}.")
+            self.rules.append(Rule(
+                names[-1], [q("hs R h_select EC F Pl (vsome {})", wl), q("rs R s_pending"), rq, *reads,
+                            q("!peval {} vnil vnil {} (vnum 0)", snap_w, d), ec], [*fail, *back]))
             names.append(f"reselect_{c}_div{n}")
-            self.rules.append(
-                f"{names[-1]} : hs R h_select EC F Pl vnone -o rs R _ -o {rq}{reads}\n"
-                f"  -o !peval {snap} vnil vnil {d} (vnum 0) {ec}\n  -o {{{fail}{back}}}.")
+            self.rules.append(Rule(
+                names[-1], [q("hs R h_select EC F Pl vnone"), q("rs R _"), rq, *reads,
+                            q("!peval {} vnil vnil {} (vnum 0)", snap, d), ec], [*fail, *back]))
         names.append(f"final_{c}_div{n}")
-        self.rules.append(
-            f"{names[-1]} : hs R h_final EC F Pl W -o {rq}{reads}\n"
-            f"  -o !peval {snap} vnil vnil {d} (vnum 0) {ec}\n"
-            f"  -o {{hs R (h_verdict ff) EC1 F Pl W * {rq}{back}}}.")
-        broke = f"!peval {snap} vnil vnil {pred_p} (vbool ff) -o !ec_broke {c} EC EC1"
-        for rule in self.rules[first:]:
-            name = rule.split(" : ", 1)[0]
-            if name in (f"ensure_broken_{c}", f"ensure_broken_top_{c}") and broke in rule:
-                names.append(f"{name}_div{n}")
-                self.rules.append(f"{names[-1]} : " + rule.split(" : ", 1)[1].replace(
-                    broke, f"!peval {snap} vnil vnil {d} (vnum 0) -o !ec_add (k_local {where}) EC EC0"
-                           f" -o !ec_broke {c} EC0 EC1"))
+        self.rules.append(Rule(
+            names[-1], [q("hs R h_final EC F Pl W"), rq, *reads, q("!peval {} vnil vnil {} (vnum 0)", snap, d), ec],
+            [q("hs R (h_verdict ff) EC1 F Pl W"), rq, *back]))
+        if c in self.eperiods or c in self.ensured:
+            names += self.broken_rules(c, tag, reads, back,
+                                       [q("!peval {} vnil vnil {} (vnum 0)", snap, d),
+                                        q("!ec_add (k_local {}) EC EC0", where), q("!ec_broke {} EC0 EC1", c)],
+                                       f"_div{n}")
         for x in names:
             self.guards[x] = (tag.name, "hs")
 
-    def logic_select(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap_w: str, snap: str,
-                     wl: str, pred_p: str) -> None:
+    def logic_select(self, c: str, tag: a.Agent, rq: S.Expr, reads: list, back: list, snap_w: S.Expr,
+                     snap: S.Expr, wl: S.Expr, pred_p: S.Expr) -> None:
         """The decision on ``c`` when the target's task pre-conditions call the functional layer
         (4.3 through the functional layer): ``lselect_cN`` / ``lreselect_cN`` take the snapshot
         (the where values in place, as ``select_cN`` does) and start the logic activation that
         makes the calls and evaluates those pre-conditions on it (:meth:`logic_activation`);
         when it is done, ``select_cN`` decides on the same snapshot, each such pre-condition's
         value in its cell ``lp_AGENT_K``."""
-        code = self._code(self.logic_activation(c, tag))
-        start = f"lsnap i {{S}} * ctl i m_run {code} vnil * rstat i go"
-        self.rules.append(
-            f"lselect_{c} : hs R h_select EC F Pl (vsome {wl}) -o rs R s_pending -o {rq}{reads}\n"
-            f"  -o {{Exists i. hs R (h_lq i) EC F Pl (vsome {wl}) * rs R s_pending * {rq}{back}"
-            f" * {start.replace('{S}', snap_w)}}}.")
-        self.rules.append(
-            f"lreselect_{c} : hs R h_select EC F Pl vnone -o {rq}{reads}\n"
-            f"  -o {{Exists i. hs R (h_lq i) EC F Pl vnone * {rq}{back} * {start.replace('{S}', snap)}}}.")
-        cells = [cell for cell, _q, _t in self.logic_pres[tag.name]]
-        got = "vnil"
-        full = "S"
+        code = code_list(self.logic_activation(c, tag))
+
+        def start(snapshot):
+            return [q("lsnap i {}", snapshot), q("ctl i m_run {} vnil", code), q("rstat i go")]
+        self.rules.append(Rule(
+            f"lselect_{c}", [q("hs R h_select EC F Pl (vsome {})", wl), q("rs R s_pending"), rq, *reads],
+            [q("hs R (h_lq i) EC F Pl (vsome {})", wl), q("rs R s_pending"), rq, *back, *start(snap_w)],
+            fresh=("i",)))
+        self.rules.append(Rule(
+            f"lreselect_{c}", [q("hs R h_select EC F Pl vnone"), rq, *reads],
+            [q("hs R (h_lq i) EC F Pl vnone"), rq, *back, *start(snap)], fresh=("i",)))
+        cells = [cell for cell, _pre, _t in self.logic_pres[tag.name]]
+        got = q("vnil")
+        full = q("S")
         for i, cell in enumerate(cells):
-            got = f"(vcons X{i + 1} {got})"
-            full = f"(vcons (vpair (vcell {cell}) X{i + 1}) {full})"
+            got = q("vcons {} {}", f"X{i + 1}", got)
+            full = q("vcons (vpair (vcell {}) {}) {}", cell, f"X{i + 1}", full)
         self.guards[f"lselect_{c}"] = self.guards[f"lreselect_{c}"] = (tag.name, "hs")
         zero, ec = self.pre_division_premise(tag, full)
-        self.rules.append(
-            f"select_{c} : hs R (h_lq I) EC F Pl W -o lsnap I S -o ctl I m_run cnil {got} -o rstat I go"
-            f" -o {rq} -o mask a_{tag.name} M\n"
-            f"  -o !mtasks M MT -o !decide_k K {pred_p} {full} F MT D{zero} -o !commit D R M M1 -o !committed D Pl1\n"
-            f"  -o {{hs R (h_dec D) {ec} F Pl1 W * {rq} * mask a_{tag.name} M1}}.")
+        mask = f"a_{tag.name}"
+        self.rules.append(Rule(
+            f"select_{c}",
+            [q(HS_LOGIC, "EC"), q("lsnap I S"), q("ctl I m_run cnil {}", got), q("rstat I go"), rq, q("mask {} M", mask),
+             q("!mtasks M MT"), q("!decide_k K {} {} F MT D", pred_p, full), *zero, q("!commit D R M M1"),
+             q("!committed D Pl1")],
+            [q("hs R (h_dec D) {} F Pl1 W", ec), rq, q("mask {} M1", mask)]))
 
-    def timed_ensure_rules(self, c: str, tag: a.Agent, rq: str, reads: str, back: str, snap: str, pred_p: str) -> None:
+    def timed_ensure_check(self, c: str, tag: a.Agent, reads: list, back: list, snap: S.Expr,
+                           pred_p: S.Expr) -> None:
         """Timed mode: a held ensure of ``c`` is re-checked at its period (``held_arm`` arms it),
-        not at any moment: at its tick it is armed again if its predicate holds, and otherwise it
-        is broken as in the untimed model (temporary failure, tasks released, decided again, its
-        emitter paused), its timer gone."""
-        ens = f"rq R a_{tag.name} {c} J k_ensure"
-        due = "-o clock Dk -o tmrs Lk -o !tm_rm Dk Lk Lk1"
-        self.rules.append(
-            f"ensure_check_{c} : hs R (h_heldt Dk) EC F Pl W -o {ens} {due}{reads}\n"
-            f"  -o !peval {snap} vnil vnil {pred_p} (vbool tt) -o !eperiod {c} Pk -o !tafter Pk Dk Dk2"
-            f" -o !tm_ins Dk2 Lk1 Lk2\n"
-            f"  -o {{hs R (h_heldt Dk2) EC F Pl W * {ens} * clock Dk * tmrs Lk2{back}}}.")
-        head = (f"hs R (h_heldt Dk) EC F Pl W -o rs R s_success -o {ens} -o mask a_{tag.name} M -o !mrm M Pl M1"
-                f" {due} -o !clk_norm Lk1 Dk Tk1{reads}\n"
-                f"  -o !peval {snap} vnil vnil {pred_p} (vbool ff) -o !ec_broke {c} EC EC1")
-        again = (f"hs R h_select EC1 F vnil vnone * rs R s_tempfail * {ens}"
-                 f" * mask a_{tag.name} M1 * clock Tk1 * tmrs Lk1{back}")
-        self.rules.append(
-            f"ensure_broken_{c} : {head}\n"
-            f"  -o rstat J Z -o !child_pause Z Z1 -o act J R0 T0 Rc0 N0 -o rs R0 S0 -o !shown Z Z1 S0 S1\n"
-            f"  -o {{{again} * rstat J Z1 * act J R0 T0 Rc0 N0 * rs R0 S1}}.")
-        self.rules.append(f"ensure_broken_top_{c} : {head} -o !detached J\n  -o {{{again}}}.")
+        not at any moment: at its tick it is armed again if its predicate holds (this rule), and
+        otherwise it is broken as in the untimed model, its timer gone (:meth:`broken_rules`)."""
+        ens = q("rq R {} {} J k_ensure", f"a_{tag.name}", c)
+        self.rules.append(Rule(
+            f"ensure_check_{c}",
+            [q("hs R (h_heldt Dk) EC F Pl W"), ens, *map(q, TIMER_DUE), *reads,
+             q("!peval {} vnil vnil {} (vbool tt)", snap, pred_p), q("!eperiod {} Pk", c), q("!tafter Pk Dk Dk2"),
+             q("!tm_ins Dk2 Lk1 Lk2")],
+            [q("hs R (h_heldt Dk2) EC F Pl W"), ens, q("clock Dk"), q("tmrs Lk2"), *back]))
 
-    def outcome_rules(self, fc: str, owner: Optional[str], name: str, rty: Optional[str]) -> list[str]:
+    def broken_rules(self, c: str, tag: a.Agent, reads: list, back: list, breach: list, suffix: str) -> list[str]:
+        """A held ensure of ``c`` is broken (4.4, 5.2) when ``breach`` holds (its predicate false,
+        or a division by zero in it): the request goes to temporary failure with the breach in its
+        error context (``EC1``), its tasks are released, it decides again, and its emitter pauses
+        meanwhile (figure 3; ``ensure_broken_top`` when no activation emitted it). Timed, this is
+        its periodic re-check, and its timer goes. Returns the rules' names."""
+        ens = q("rq R {} {} J k_ensure", f"a_{tag.name}", c)
+        mask = f"a_{tag.name}"
+        timed = c in self.eperiods
+        held = q("hs R (h_heldt Dk) EC F Pl W") if timed else q("hs R h_held EC F Pl W")
+        head = [held, q("rs R s_success"), ens, q("mask {} M", mask), q("!mrm M Pl M1"),
+                *([*map(q, TIMER_DUE), q("!clk_norm Lk1 Dk Tk1")] if timed else []), *reads, *breach]
+        again = [q("hs R h_select EC1 F vnil vnone"), q("rs R s_tempfail"), ens, q("mask {} M1", mask),
+                 *([q("clock Tk1"), q("tmrs Lk1")] if timed else []), *back]
+        names = [f"ensure_broken_{c}{suffix}", f"ensure_broken_top_{c}{suffix}"]
+        self.rules.append(Rule(
+            names[0], [*head, q("rstat J Z"), q("!child_pause Z Z1"), q("act J R0 T0 Rc0 N0"), q("rs R0 S0"),
+                       q("!shown Z Z1 S0 S1")],
+            [*again, q("rstat J Z1"), q("act J R0 T0 Rc0 N0"), q("rs R0 S1")]))
+        self.rules.append(Rule(names[1], [*head, q("!detached J")], again))
+        return names
+
+    def outcome_rules(self, fc: str, owner: Optional[str], name: str, rty: Optional[str]) -> list:
         prim = None
         if self.registry is not None:
             prim = self.registry.lookup(name, owner)
@@ -2185,30 +2231,30 @@ class _Compiler:
             self.failure_budgets[fc] = bound
         for o in outcomes:
             oname = re.sub(r"\W", "_", o.name)
-            writes_p, writes_o = "", ""
+            writes_p, writes_o = [], []
             for var, val in o.writes.items():
                 agent, _, vn = var.rpartition("::")
                 cell = self.cell(agent or owner, vn)
-                writes_p += f" -o contains {cell} _"
-                writes_o += f" * contains {cell} {self.value(val, self.model.cell_types.get(cell))}"
+                writes_p.append(q("contains {} _", cell))
+                writes_o.append(q("contains {} {}", cell, self.value(val, self.model.cell_types.get(cell))))
             if o.result is not None:
-                res = f"return {self.value(o.result, rty)} D"
+                res = q("return {} D", self.value(o.result, rty))
             elif rty == "bool":
-                res = f"return (vbool {'tt' if o.success else 'ff'}) D"
+                res = q("return (vbool tt) D") if o.success else q("return (vbool ff) D")
             elif o.success:
-                res = f"return {self.default(rty)} D"
+                res = q("return {} D", self.default(rty))
             else:
-                res = "callfail D"
-            budget_p = budget_o = ""
+                res = q("callfail D")
+            budget_p, budget_o = [], []
             if bound is not None and not o.success:   # one failure fewer left (an assumption)
-                budget_p, budget_o = f" -o fails_left {fc} (s N)", f" * fails_left {fc} N"
+                budget_p, budget_o = [q("fails_left {} (s N)", fc)], [q("fails_left {} N", fc)]
             rule = f"outcome_{fc}_{oname}"
             if prim is not None and prim.fair and o.success:   # its own fairness group (strong fairness)
                 self.model.fair_outcomes[rule] = f"{f'{owner}::' if owner else ''}{name} -> {o.name}"
-            rules.append(f"{rule} : pending {fc} _ D{writes_p}{budget_p} -o {{{res}{writes_o}{budget_o}}}.")
+            rules.append(Rule(rule, [q("pending {} _ D", fc), *writes_p, *budget_p], [res, *writes_o, *budget_o]).item())
         return rules
 
-    def domain_rules(self) -> list[str]:
+    def domain_rules(self) -> list:
         """The agents' rules (``NAME = P, ... |- C, ...;``) as clauses of the entailment ``hyp``
         (4.3: "the rules associated to the domain of the constraint"): each conclusion conjunct
         follows from the premises, each use spending one unit of the proof budget. Capitalised
@@ -2223,8 +2269,8 @@ class _Compiler:
             seers = [b for b in self.spec.agents if ag.name in self.spec.visible(b)]
             scoped = len(seers) < len(self.spec.agents)
             if scoped and ag.rules:
-                out.extend(f"scope_{self.task_c(b.name, t.name)}_{ag.name} : dom_scope "
-                           f"{self.task_c(b.name, t.name)} a_{ag.name}." for b in seers for t in b.tasks)
+                out.extend(fact(f"scope_{self.task_c(b.name, t.name)}_{ag.name}", "dom_scope {} {}",
+                                self.task_c(b.name, t.name), f"a_{ag.name}") for b in seers for t in b.tasks)
             for rule in ag.rules:
                 exprs = list(rule.premises) + list(rule.conclusions)
                 if any(isinstance(n, (a.Call, a.LastError)) for e in exprs for n in a.walk(e)):
@@ -2237,13 +2283,13 @@ class _Compiler:
                             cx.logic.setdefault(ref.name, f"L{len(cx.logic) + 1}")
                 prem = [self.pexp(x, cx) for e in rule.premises for x in a.conjuncts(e)]
                 for i, c in enumerate(x for e in rule.conclusions for x in a.conjuncts(e)):
-                    name = f"dom_{ag.name}_{rule.name}_{i}"
-                    concl = f"hyp {'(s N)' if prem else '_'} T (fatom {self.pexp(c, cx)})"
-                    scope = f" <- dom_scope T a_{ag.name}" if scoped else ""
-                    out.append(f"{name} : {concl}{scope}" + "".join(f" <- hyp N T (fatom {q})" for q in prem) + ".")
+                    concl = q("hyp {} T (fatom {})", q("s N") if prem else q("_"), self.pexp(c, cx))
+                    scope = [q("dom_scope T {}", f"a_{ag.name}")] if scoped else []
+                    out.append(backward(f"dom_{ag.name}_{rule.name}_{i}", concl,
+                                        [*scope, *(q("hyp N T (fatom {})", p) for p in prem)]))
         return out
 
-    def candidates(self, sig) -> str:
+    def candidates(self, sig) -> list:
         """The logic layer at compile time: which tasks' post-conditions entail each predicate (4.3, 8.2).
 
         The entailment ``prove`` is the framework's proof search (hyp/prove
@@ -2254,15 +2300,15 @@ class _Compiler:
         from ..clf.backward import Backward
         budget = nat(PROOF_BUDGET)
 
-        def provable(pairs: list[tuple[str, str]]) -> list[bool]:
+        def provable(pairs: list[tuple[str, S.Expr]]) -> list[bool]:
             """Whether ``prove`` succeeds for each (task, formula)."""
-            queries = "".join(f"#query * * * 1 prove {budget} {tc} {form}.\n" for tc, form in pairs)
+            queries = [query(q("prove {} {} {}", budget, tc, form)) for tc, form in pairs]
             prog = Program(extend_signature(sig, queries, "<compiled model>"))
             goals = [d for d in prog.sig.directives if hasattr(d, "goal")]
             return [next(iter(Backward(prog).solve(q.goal)), None) is not None for q in goals]
 
         found: dict[str, list[str]] = {}
-        pending = sorted(self.predicates.items())
+        pending = sorted(self.predicates.items(), key=lambda pa: (key_text(pa[0]), pa[1]))
         while pending:   # hypotheses are predicates too: their candidates are found in a next round
             pairs = [(p, agent, t) for p, agent in pending for t in self.spec.agent(agent).tasks]
             direct = provable([(self.task_c(agent, t.name), self.goal_form(p)) for p, agent, t in pairs])
@@ -2274,14 +2320,14 @@ class _Compiler:
             # "if there is no direct solution, but a solution under certain hypotheses" (4.3)
             tries = []   # (p, agent, task, hypothesis) for the predicates no task entails directly
             for (p, agent, t), ok in zip(pairs, direct):
-                if not found[p] and p not in self.hyp_keys and not p.startswith("(pc lp_"):
+                if not found[p] and p not in self.hyp_keys and not self.calls_function(p):
                     # (a where-keyed one keeps its own; a call is never abduced)
                     for h in self.hypotheses(self.predicate_exprs[p], t):
                         tries.append((p, agent, t, h))
             if tries:
                 ctx = lambda agent: _Ctx(self, self.spec.agent(agent), [], snapshot=True)
                 forms = [(self.task_c(agent, t.name),
-                          f"(fwith (fatom {self.pexp(h, ctx(agent))}) {self.goal_form(p)})") for p, agent, t, h in tries]
+                          q("fwith (fatom {}) {}", self.pexp(h, ctx(agent)), self.goal_form(p))) for p, agent, t, h in tries]
                 done: set = set()
                 for (p, agent, t, h), ok in zip(tries, provable(forms)):
                     if ok and (p, t.name) not in done:
@@ -2306,9 +2352,9 @@ class _Compiler:
             items = []
             for t, h in got:
                 tc = self.task_c(agent, t.name)
-                hs = "vnil" if h is None else \
-                    f"(vcons (vpexp {self.pexp(h, _Ctx(self, self.spec.agent(agent), [], snapshot=True))}) vnil)"
-                items.append(f"(vpair (vtsk {tc}) {hs})")
+                hs = q("vnil") if h is None else \
+                    q("vcons (vpexp {}) vnil", self.pexp(h, _Ctx(self, self.spec.agent(agent), [], snapshot=True)))
+                items.append(q("vpair (vtsk {}) {}", tc, hs))
                 if h is not None:
                     self.model.hypotheses.setdefault(p, []).append((agent, t.name, format_expr(h)))
             out_lists[p] = items
@@ -2316,10 +2362,16 @@ class _Compiler:
             self.model.candidates[c] = [(self.predicates[key], t.name) for t, _h in found.get(key, [])]
             if key in self.model.hypotheses:
                 self.model.hypotheses[c] = self.model.hypotheses.pop(key)
-        out = ["\n% the logic layer's candidates (prove, run by the compiler), each with its hypotheses"]
-        for i, p in enumerate(sorted(out_lists)):
-            out.append(f"cands_{i} : cands {p} {self._list(out_lists[p])}.")
-        return "\n".join(out) + "\n"
+        out: list = [Comment("\nthe logic layer's candidates (prove, run by the compiler), each with its hypotheses")]
+        for i, p in enumerate(sorted(out_lists, key=key_text)):
+            out.append(fact(f"cands_{i}", "cands {} {}", p, vlist(out_lists[p])))
+        return out
+
+    @staticmethod
+    def calls_function(p: S.Expr) -> bool:
+        """Whether predicate key ``p`` is a task pre-condition that calls a function (``pc lp_AGENT_K``,
+        :meth:`logic_pre`): nothing entails it, and it is never abduced."""
+        return head_of(p) == "pc" and format_term(args_of(p)[0]).startswith("lp_")
 
     def hypotheses(self, target: tuple, t: a.Task) -> list:
         """Hypotheses under which task ``t`` may entail the predicate (4.3: "a solution under
@@ -2335,11 +2387,11 @@ class _Compiler:
         for c in a.conjuncts(pred):
             if not (isinstance(c, a.Binary) and c.op == "=="):
                 continue
-            for q in posts:
-                if not (isinstance(q, a.Binary) and q.op == "=="):
+            for post in posts:
+                if not (isinstance(post, a.Binary) and post.op == "=="):
                     continue
                 for x, y in ((c.left, c.right), (c.right, c.left)):
-                    for u, v in ((q.left, q.right), (q.right, q.left)):
+                    for u, v in ((post.left, post.right), (post.right, post.left)):
                         if x == u and isinstance(x, (a.Name, a.Remote)) and v != y \
                                 and not (isinstance(v, lits) and isinstance(y, lits)):
                             h = a.Binary("==", v, y, pos=c.pos)
@@ -2348,24 +2400,24 @@ class _Compiler:
                                 out.append(h)
         return out
 
-    def goal_form(self, p: str) -> str:
+    def goal_form(self, p: S.Expr) -> S.Expr:
         """What the logic layer proves for predicate key ``p``: its formula, under the where
         hypotheses of a ``pwhere`` key."""
-        if p.startswith("(pc lp_"):   # a pre-condition that calls a function: nothing entails it
-            return f"(fatom {p})"
+        if self.calls_function(p):   # a pre-condition that calls a function: nothing entails it
+            return q("fatom {}", p)
         if p in self.hyp_keys:
             base, hyps = self.hyp_keys[p]
             form = self._form(*self.predicate_exprs[base])
             for h in reversed(hyps):
-                form = f"(fwith {h} {form})"
+                form = q("fwith {} {}", h, form)
             return form
         return self._form(*self.predicate_exprs[p])
 
-    def _form(self, agent: a.Agent, e: a.Expr) -> str:
+    def _form(self, agent: a.Agent, e: a.Expr) -> S.Expr:
         """A predicate as a formula of the logic layer: conjunctions split, each conjunct an atom."""
         if isinstance(e, a.Binary) and e.op == "&&":
-            return f"(fand {self._form(agent, e.left)} {self._form(agent, e.right)})"
-        return f"(fatom {self.pexp(e, _Ctx(self, agent, [], snapshot=True))})"
+            return q("fand {} {}", self._form(agent, e.left), self._form(agent, e.right))
+        return q("fatom {}", self.pexp(e, _Ctx(self, agent, [], snapshot=True)))
 
 
 class _Opaque:

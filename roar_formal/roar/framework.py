@@ -11,7 +11,9 @@ from __future__ import annotations
 
 from functools import lru_cache
 from importlib import resources
+from typing import Optional, Sequence, Union
 
+from ..clf import surface as S
 from ..clf.parser import parse_program
 from ..clf.program import Program
 from ..clf.signature import Signature, elaborate, elaborate_steps
@@ -28,20 +30,38 @@ def framework_signature() -> Signature:
     return elaborate(parse_program(framework_text(), "<framework>"))
 
 
-def extend_signature(base: Signature, text: str, file: str = "<compiled spec>") -> Signature:
-    """A copy of ``base`` extended with ``text`` (declarations and directives), checked one item
-    at a time; positions in errors refer to ``text`` alone. ``base`` is not changed."""
+def extend_signature(base: Signature, items: Union[str, Sequence], file: str = "<compiled spec>",
+                     failed: Optional[list] = None) -> Signature:
+    """A copy of ``base`` extended with ``items``: syntax trees (declarations and directives, as a
+    compiler builds them), or CLF text, checked one item at a time; positions in errors of text
+    refer to ``text`` alone. ``base`` is not changed. ``failed``, when given, gets the item that
+    did not check (an error names the item, whatever positions its nodes have)."""
     sig = Signature(dict(base.consts), list(base.directives), dict(base.modes), dict(base.implicit_modes), file)
-    for _ in elaborate_steps(parse_program(text, file), sig):
-        pass
+    program = parse_program(items, file) if isinstance(items, str) else S.Program(file, tuple(items))
+    done = 0
+    try:
+        for _ in elaborate_steps(program, sig):
+            done += 1
+    except Exception:
+        if failed is not None and done < len(program.items):
+            failed.append(program.items[done])
+        raise
     return sig
 
 
-def extend_framework(text: str, file: str = "<compiled spec>") -> Signature:
-    """The framework's signature extended with ``text``."""
-    return extend_signature(framework_signature(), text, file)
+def extend_framework(items: Union[str, Sequence], file: str = "<compiled spec>",
+                     failed: Optional[list] = None) -> Signature:
+    """The framework's signature extended with ``items`` (trees or text)."""
+    return extend_signature(framework_signature(), items, file, failed)
 
 
-def with_framework(text: str, file: str = "<compiled spec>") -> Program:
-    """A program made of the framework followed by ``text`` (declarations and directives)."""
-    return Program(extend_framework(text, file))
+def with_framework(items: Union[str, Sequence], file: str = "<compiled spec>") -> Program:
+    """A program made of the framework followed by ``items`` (declarations and directives)."""
+    return Program(extend_framework(items, file))
+
+
+@lru_cache(maxsize=None)
+def parsed_part(text: str, file: str) -> tuple:
+    """A fixed part of the framework added only to some models (crashes, time), parsed once per
+    process: its items, to extend a model with."""
+    return parse_program(text, file).items

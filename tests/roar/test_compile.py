@@ -410,6 +410,7 @@ def test_every_statement_rule_names_its_site_in_the_table(spec, request_):
 def test_a_declaration_the_compiler_gets_wrong_is_reported_at_the_spec(monkeypatch):
     """A compiled rule that does not check is a compiler bug: the error names the spec's statement
     it came from (file:line:col of the statement), the generated line, and says it is a bug."""
+    from roar_formal.clf.build import Rule, q
     from roar_formal.roar import compile as c
     root = Path(__file__).resolve().parents[2]
     spec = load_spec(root / "models" / "conflict.roar")
@@ -417,7 +418,7 @@ def test_a_declaration_the_compiler_gets_wrong_is_reported_at_the_spec(monkeypat
 
     def broken(self):
         site = next(s for s in self.model.sites.values() if s.kind == "set")
-        self.rules.append(f"{site.const}_broken : no_such_family I -o {{1}}.")
+        self.rules.append(Rule(f"{site.const}_broken", [q("no_such_family I")], []))
         return real(self)
     monkeypatch.setattr(c._Compiler, "guard_crashed", broken)
     with pytest.raises(RoarError) as err:
@@ -427,3 +428,54 @@ def test_a_declaration_the_compiler_gets_wrong_is_reported_at_the_spec(monkeypat
     assert e.message.startswith("internal error: the CLF compiled for set ")
     assert "no_such_family" in e.message + " ".join(e.notes)
     assert any(n.startswith("<compiled model>:") and "_broken : no_such_family" in n for n in e.notes)
+
+
+def _plain(e):
+    """A syntax tree without positions (and the text a number was written as)."""
+    if isinstance(e, tuple):
+        return tuple(_plain(x) for x in e)
+    if dataclasses.is_dataclass(e):
+        return (type(e).__name__,) + tuple(_plain(getattr(e, f.name)) for f in dataclasses.fields(e)
+                                           if f.name not in ("pos", "text", "bounds_pos"))
+    return e
+
+
+@pytest.mark.parametrize("spec,request_,kw", [
+    ("models/conflict.roar", "mission::done == true", {}),
+    ("tests/roar/data/wait_timeout.roar", "door::open == true", {"time": "timed"}),
+    ("models/conflict.roar", "mission::done == true", {"crashes": "ptu"}),
+    ("tests/roar/data/div_logic_pre.roar", "a::x == 1", {"crashes": "a"}),
+])
+def test_the_printed_model_is_the_model(spec, request_, kw):
+    """The compiler builds syntax trees; the model it prints (``roar-verify compile``) reads back
+    as exactly those trees, so what a user reads is what is checked."""
+    from roar_formal.clf.build import Comment
+    from roar_formal.clf.parser import parse_program
+    from roar_formal.roar.compile import Crashes
+    if "crashes" in kw:
+        kw = {"crashes": Crashes((kw["crashes"],))}
+    root = Path(__file__).resolve().parents[2]
+    model = compile_spec(load_spec(root / spec), request_, **kw)
+    built = [_plain(x) for x in model.items if not isinstance(x, Comment)]
+    assert [_plain(x) for x in parse_program(model.spec_text, "<printed>").items] == built
+    assert len(built) > 50 and model.text.endswith(model.spec_text)
+
+
+def test_the_printed_model_runs_under_celf_rules(tmp_path, capsys):
+    """``roar-verify compile`` promises a program ``roar-verify clf`` runs (Celf's typing, the
+    initial context after every table it reads): the run ends with the request succeeded, as a
+    run of the spec does."""
+    root = Path(__file__).resolve().parents[2]
+    out = tmp_path / "conflict.clf"
+
+    def cli(*argv) -> int:
+        try:
+            main(list(argv))
+        except SystemExit as exc:
+            return exc.code or 0
+        return 0
+    assert cli("compile", str(root / "models" / "conflict.roar"), "-r", "mission::done == true", "-o", str(out)) == 0
+    assert cli("clf", str(out), "--seed", "0") == 0
+    printed = capsys.readouterr().out
+    assert printed.rstrip().splitlines()[-1].startswith("Success:")
+    assert re.search(r"rs r0#\d+ s_success", printed), printed[-2000:]
