@@ -14,7 +14,12 @@ from typing import Iterable, Optional, Sequence
 
 from ..lines import Lines
 
-__all__ = ["Row", "event_rows", "event_lines", "KIND_STYLE"]
+__all__ = ["Row", "event_rows", "event_lines", "folded", "Repeat", "KIND_STYLE"]
+
+#: the longest block of events whose repeats are folded into one line
+MAX_PERIOD = 16
+#: a block is folded from this many consecutive occurrences on
+MIN_REPEATS = 3
 
 KIND_STYLE = {
     "sent": "cyan", "state": "bold", "tasks": "magenta", "recipe": "magenta", "recipe-end": "magenta",
@@ -60,13 +65,62 @@ def event_rows(events: Iterable, times: Optional[Sequence[float]] = None, poses:
     return rows
 
 
+@dataclass(frozen=True)
+class Repeat:
+    """``times`` more occurrences of the ``period`` events just shown, from step ``first`` to ``last``."""
+
+    period: int
+    times: int
+    first: int
+    last: int
+
+    def text(self) -> str:
+        what = "the event above" if self.period == 1 else f"the {self.period} events above"
+        return (f"... {what} {'repeats' if self.period == 1 else 'repeat'} {self.times} more time"
+                f"{'s' if self.times > 1 else ''} (steps {self.first} to {self.last}; --verbose shows them)")
+
+
+def folded(rows: Sequence[Row]) -> list:
+    """The rows with each run of at least :data:`MIN_REPEATS` consecutive occurrences of a block
+    of events (the same agents, kinds and texts, at other steps) kept once, followed by a
+    :class:`Repeat`: a recipe retried for ever reads as one attempt and a count. The block
+    folded at a row is the one that covers the most rows (the shortest of those)."""
+    keys = [(r.kind, r.agent, r.text) for r in rows]
+    out: list = []
+    i, n = 0, len(rows)
+    while i < n:
+        best = None   # (rows covered, period, occurrences)
+        for p in range(1, MAX_PERIOD + 1):
+            if i + MIN_REPEATS * p > n:
+                break
+            k = 1
+            while i + (k + 1) * p <= n and keys[i + k * p:i + (k + 1) * p] == keys[i:i + p]:
+                k += 1
+            if k >= MIN_REPEATS and (best is None or k * p > best[0]):
+                best = (k * p, p, k)
+        if best is None:
+            out.append(rows[i])
+            i += 1
+            continue
+        _covered, p, k = best
+        out.extend(rows[i:i + p])
+        out.append(Repeat(p, k - 1, rows[i + p].step, rows[i + k * p - 1].step))
+        i += k * p
+    return out
+
+
 def event_lines(rows: Iterable[Row], verbose: bool = False, poses: bool = True) -> Lines:
-    """The step table as styled lines (styled by kind; printed by the CLI, joined by the library)."""
+    """The step table as styled lines (styled by kind; printed by the CLI, joined by the library).
+    Repeated blocks of events are folded (:func:`folded`) unless ``verbose``."""
     import math
 
     out = Lines()
     last_pose = None
-    for row in rows:
+    rows = list(rows)
+    for row in (rows if verbose else folded(rows)):
+        if isinstance(row, Repeat):
+            out.add((f"{'':>5} ", "dim"), (row.text(), "dim"))
+            continue
         parts: list = [(f"{row.step:>5} ", "dim")]
         if row.time is not None:
             parts.append((f"{row.time:8.2f}s ", "dim"))
