@@ -48,14 +48,16 @@ PROGRESS_RULES = ("success", "success_held", "written_holds", "written_holds_aga
 FINAL_STATES = ("s_success", "s_failure")
 
 #: the sequential-achievement monitor's own facts besides mon_in / mon_cmd / mon_b (never
-#: framework families): ``mon_plan P R C Ts Cur`` a plan instance P (a fresh name) of request R of
-#: constraint C with tasks Ts (Cur: tt while it is R's current plan), ``mon_got S I`` the request
-#: activation I sent at site S was achieved, ``mon_undone A B`` (only in the state right after the
-#: step) B was achieved, or the recipe ended (B = ``mtag_end``), while A's predicate was false
-MON_PLAN, MON_GOT, MON_UNDONE = "mon_plan", "mon_got", "mon_undone"
+#: framework families; named, with their records and decoders, in roar/vocabulary.py):
+#: ``mon_plan P R C Ts Cur`` a plan instance P (a fresh name) of request R of constraint C with
+#: tasks Ts (Cur: tt while it is R's current plan), ``mon_got S I`` the request activation I sent
+#: at site S was achieved, ``mon_undone A B`` (only in the state right after the step) B was
+#: achieved, or the recipe ended (B = ``mtag_end``), while A's predicate was false
+MON_PLAN, MON_GOT, MON_UNDONE = V.MON_PLAN, V.MON_GOT, V.MON_UNDONE
 #: subtree tags (the second argument of mon_in / mon_cmd, the argument of mon_b): ``mtag_site S I``
 #: the request activation I sent at site S and its subtree; ``mtag_task P T`` task T of plan P
-TAG_SITE, TAG_TASK, TAG_END = "mtag_site", "mtag_task", "mtag_end"
+#: (decoded by ``V.tag_site`` / ``V.tag_task``)
+TAG_SITE, TAG_TASK, TAG_END = V.MTAG_SITE, V.MTAG_TASK, V.MTAG_END
 #: what the sequential-achievement monitor is updated from or reads (reduction: visible families)
 MONITOR_FAMILIES = frozenset({"rq", "pending", "return", "callfail", "act", "chk", "mon_in", "mon_cmd", "mon_b",
                               "hs", "rs", "contains", MON_PLAN, MON_GOT, MON_UNDONE})
@@ -384,7 +386,7 @@ class RoarSystem(ClfSystem):
                 inst = next((V.ctl(g).inst for g in consumed if _h(g) == V.CTL), False)
             for t in (self._tags_of_inst(state, inst) if inst is not False else ()):
                 nxt.add_fact(const(V.MON_CMD, V.pending(f).dest, t), LIN)
-                if self._second(t) and not _has(nxt, V.MON_B, lambda g, t=t: g.args[0] is t):
+                if self._second(t) and not _has(nxt, V.MON_B, lambda g, t=t: V.mon_b(g).pair is t):
                     nxt.add_fact(const(V.MON_B, t), LIN)
         # commands end; requests disappear
         for f in consumed:
@@ -402,20 +404,22 @@ class RoarSystem(ClfSystem):
     def _second(self, tag) -> bool:
         """Can ``tag`` be the second subtree of a pair (so its first command is recorded)?"""
         h = _h(tag)
-        return h == TAG_TASK or (h == TAG_SITE and _h(tag.args[0]) in self._preds)
+        return h == TAG_TASK or (h == TAG_SITE and _h(V.tag_site(tag).site) in self._preds)
 
     def _firsts(self, ctx: Context, tag) -> list:
         """The subtrees that must be over before a command of ``tag``'s starts."""
         h = _h(tag)
         if h == TAG_SITE:
-            return [const(TAG_SITE, const(p.a), tag.args[1]) for p in self._preds.get(_h(tag.args[0]), ())]
+            ts = V.tag_site(tag)
+            return [const(TAG_SITE, const(p.a), ts.inst) for p in self._preds.get(_h(ts.site), ())]
         if h == TAG_TASK:
-            plan = self._plan(ctx, tag.args[0])
+            tt = V.tag_task(tag)
+            plan = self._plan(ctx, tt.plan)
             if plan is not None:
-                ts = list_items(plan.args[3])
+                ts = list_items(plan.tasks)
                 for k in range(1, len(ts)):
-                    if V.unwrap(ts[k]) is tag.args[1]:
-                        return [const(TAG_TASK, tag.args[0], V.unwrap(ts[k - 1]))]
+                    if V.unwrap(ts[k]) is tt.task:
+                        return [const(TAG_TASK, tt.plan, V.unwrap(ts[k - 1]))]
         return []
 
     def _collect(self, nxt: Context) -> None:
@@ -427,15 +431,17 @@ class RoarSystem(ClfSystem):
         plans = _facts(nxt, MON_PLAN)
         if not started and not plans:
             return
-        live = {g.args[1] for g in _facts(nxt, V.MON_IN)} | {g.args[1] for g in _facts(nxt, V.MON_CMD)}
+        live = {V.mon_in(g).pair for g in _facts(nxt, V.MON_IN)} | \
+            {V.mon_cmd(g).pair for g in _facts(nxt, V.MON_CMD)}
         for g in started:
-            if not any(t in live for t in self._firsts(nxt, g.args[0])):
+            if not any(t in live for t in self._firsts(nxt, V.mon_b(g).pair)):
                 nxt.remove_fact(g, LIN)
         if plans:
             reqs = {V.rq(f).request for f in _facts(nxt, V.RQ)}
-            used = {t.args[0] for t in live if _h(t) == TAG_TASK}
+            used = {V.tag_task(t).plan for t in live if _h(t) == TAG_TASK}
             for g in plans:
-                if (_h(g.args[4]) != "tt" or g.args[1] not in reqs) and g.args[0] not in used:
+                pl = V.mon_plan(g)
+                if (_h(pl.current) != "tt" or pl.request not in reqs) and pl.plan not in used:
                     nxt.remove_fact(g, LIN)
 
     def _new_plan(self, state: Context, nxt: Context, req, tasks) -> None:
@@ -443,14 +449,16 @@ class RoarSystem(ClfSystem):
         if q is None or self.model.agents.get(_h(q.agent)) not in self._plan_agents:
             return
         for g in _facts(nxt, MON_PLAN):   # the plan it replaces is no longer current
-            if g.args[1] is req and _h(g.args[4]) == "tt":
+            pl = V.mon_plan(g)
+            if pl.request is req and _h(pl.current) == "tt":
                 nxt.remove_fact(g, LIN)
-                nxt.add_fact(const(MON_PLAN, *g.args[:4], const("ff")), LIN)
+                nxt.add_fact(const(MON_PLAN, pl.plan, pl.request, pl.cst, pl.tasks, const("ff")), LIN)
         if len(list_items(tasks)) >= 2:
             nxt.add_fact(const(MON_PLAN, param_term(Param("plan")), req, q.cst, tasks, const("tt")), LIN)
 
-    def _plan(self, ctx: Context, p):
-        return next((g for g in _facts(ctx, MON_PLAN) if g.args[0] is p), None)
+    def _plan(self, ctx: Context, p) -> Optional[V.MonPlan]:
+        """The (decoded) mon_plan fact of plan instance ``p``, or None."""
+        return next((pl for pl in map(V.mon_plan, _facts(ctx, MON_PLAN)) if pl.plan is p), None)
 
     def _inst_info(self, state: Context, inst):
         """(request, task const) of the activation ``inst`` (a recipe's or a checker's)."""
@@ -478,10 +486,10 @@ class RoarSystem(ClfSystem):
         bag = state.index.get(_MON_IN)
         tags = {m.pair for m in map(V.mon_in, bag.items) if m.request is req} if bag else set()
         if task is not None and self._plan_agents:
-            for g in _facts(state, MON_PLAN):
-                if g.args[1] is req and _h(g.args[4]) == "tt":
-                    if any(_h(V.unwrap(x)) == task for x in list_items(g.args[3])):
-                        tags.add(const(TAG_TASK, g.args[0], const(task)))
+            for pl in map(V.mon_plan, _facts(state, MON_PLAN)):
+                if pl.request is req and _h(pl.current) == "tt":
+                    if any(_h(V.unwrap(x)) == task for x in list_items(pl.tasks)):
+                        tags.add(const(TAG_TASK, pl.plan, const(task)))
         return tags
 
     def _kept_step(self, nxt: Context, consumed: list, produced: list, rule: str) -> None:
@@ -497,12 +505,15 @@ class RoarSystem(ClfSystem):
                 continue
             for mi in map(V.mon_in, _facts(nxt, V.MON_IN)):
                 t = mi.pair
-                if mi.request is not r or _h(t) != TAG_SITE or t.args[1] is not q.emitter:
+                if mi.request is not r or _h(t) != TAG_SITE:
                     continue
-                s = _h(t.args[0])
+                ts = V.tag_site(t)
+                if ts.inst is not q.emitter:
+                    continue
+                s = _h(ts.site)
                 if s not in self._kept_info:
                     continue
-                got = const(MON_GOT, t.args[0], q.emitter)
+                got = const(MON_GOT, ts.site, q.emitter)
                 if not nxt.count(got, LIN):
                     nxt.add_fact(got, LIN)
                 for p in self._kept_after.get(s, ()):
@@ -515,7 +526,7 @@ class RoarSystem(ClfSystem):
                     if nxt.count(const(MON_GOT, const(s), i), LIN) and not self._holds(s, nxt):
                         self._undone(nxt, s, const(TAG_END))
         for i in set(ended) - {V.act(f).inst for f in produced if _h(f) == V.ACT}:
-            _remove(nxt, MON_GOT, lambda g, i=i: g.args[1] is i)
+            _remove(nxt, MON_GOT, lambda g, i=i: V.mon_got(g).inst is i)
 
     def _undone(self, nxt: Context, a: str, b) -> None:
         f = const(MON_UNDONE, const(a), b)
@@ -530,21 +541,21 @@ class RoarSystem(ClfSystem):
         """The sequential-achievement pair the state breaks, with its message in the spec's terms:
         a command of A's subtree running after one of B's subtree started (the first such pair
         in the order of ``pairs``, then the plans), or (kept) an achieved predicate undone."""
-        started = {g.args[0] for g in _facts(state, V.MON_B)}
+        started = {V.mon_b(g).pair for g in _facts(state, V.MON_B)}
         if started:
-            running = {g.args[1] for g in _facts(state, V.MON_CMD)}
+            running = {V.mon_cmd(g).pair for g in _facts(state, V.MON_CMD)}
             for p in self._seq:
                 for t in started:
-                    if _h(t) == TAG_SITE and _h(t.args[0]) == p.b and \
-                            const(TAG_SITE, const(p.a), t.args[1]) in running:
+                    if _h(t) == TAG_SITE and _h(V.tag_site(t).site) == p.b and \
+                            const(TAG_SITE, const(p.a), V.tag_site(t).inst) in running:
                         return SeqViolation(p, _order_message(p))
-            for t in sorted((t for t in started if _h(t) == TAG_TASK), key=lambda t: t.args[1].head.name):
+            for t in sorted((t for t in started if _h(t) == TAG_TASK), key=lambda t: V.tag_task(t).task.head.name):
                 for first in self._firsts(state, t):
                     if first in running:
                         p = self._plan_pair(state, first, t)
                         return SeqViolation(p, _order_message(p))
-        for g in _facts(state, MON_UNDONE):
-            a, b = _h(g.args[0]), _h(g.args[1])
+        for u in map(V.mon_undone, _facts(state, MON_UNDONE)):
+            a, b = _h(u.a), _h(u.b)
             where, a_text, pred = self._kept_info[a]
             b_text = self._kept_info[b][1] if b in self._kept_info else "the recipe ends"
             when = f"when '{b_text}' is achieved" if b in self._kept_info else "when the recipe ends"
@@ -559,11 +570,12 @@ class RoarSystem(ClfSystem):
 
     def _plan_pair(self, state: Context, first, second) -> Pair:
         m = self.model
-        plan = self._plan(state, first.args[0])
-        agent, cst = m.csts.get(_h(plan.args[2]), ("?", "?"))
-        names = [m.tasks.get(_h(V.unwrap(x)), ("?", "?"))[1] for x in list_items(plan.args[3])]
-        ta, tb = (m.tasks.get(_h(t.args[1]), ("?", "?")) for t in (first, second))
-        return Pair(_h(first.args[1]), _h(second.args[1]), f"the plan of {agent} for '{cst}' "
+        first, second = V.tag_task(first), V.tag_task(second)
+        plan = self._plan(state, first.plan)
+        agent, cst = m.csts.get(_h(plan.cst), ("?", "?"))
+        names = [m.tasks.get(_h(V.unwrap(x)), ("?", "?"))[1] for x in list_items(plan.tasks)]
+        ta, tb = (m.tasks.get(_h(t.task), ("?", "?")) for t in (first, second))
+        return Pair(_h(first.task), _h(second.task), f"the plan of {agent} for '{cst}' "
                     f"({' then '.join(names)})", f"task {ta[0]}::{ta[1]}", f"task {tb[0]}::{tb[1]}", "plan")
 
     def violates_sequence(self, state: Context) -> Optional[Pair]:

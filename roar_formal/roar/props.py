@@ -483,8 +483,8 @@ def held_tasks(model, ctx) -> dict:
         agent = model.agents.get(h(mk.agent), h(mk.agent))
         by_request: dict = {}
         for e in list_items(mk.entries):
-            t, r = e.args
-            by_request.setdefault(V.unwrap(r), []).append(model.tasks.get(h(V.unwrap(t))))
+            ent = V.vpair(e)     # vpair (vtsk T) (vreq R)
+            by_request.setdefault(V.unwrap(ent.second), []).append(model.tasks.get(h(V.unwrap(ent.first))))
         for r, items in by_request.items():
             if r in final or r not in about:
                 continue

@@ -22,16 +22,19 @@ from ..clf.terms import Const, Root
 __all__ = [
     # family and constructor names
     "CONTAINS", "RQ", "RS", "ECF", "HS", "MASK", "ABORTREQ", "CRES", "ACT", "CHK", "CTL", "RSTAT", "OWNS",
-    "RDONE", "PENDING", "RETURN", "CALLFAIL", "CEP", "MON_IN", "MON_CMD", "MON_B", "RB_RUN", "RB_SLEEP",
-    "REQUEST_FAMILIES", "INSTANCE_FAMILIES", "EXPLORER_FAMILIES", "FACTS", "TERMS", "WRAPPERS",
+    "RDONE", "PENDING", "RETURN", "CALLFAIL", "CEP", "MON_IN", "MON_CMD", "MON_B", "MON_PLAN", "MON_GOT",
+    "MON_UNDONE", "MTAG_SITE", "MTAG_TASK", "MTAG_END", "RB_RUN", "RB_SLEEP",
+    "REQUEST_FAMILIES", "INSTANCE_FAMILIES", "EXPLORER_FAMILIES", "EXPLORER_TERMS", "FACTS", "TERMS", "WRAPPERS",
     # records
     "Contains", "Rq", "Rs", "Ecf", "Hs", "Mask", "Abortreq", "Cres", "Act", "Chk", "Ctl", "Rstat", "Owns",
-    "Rdone", "Pending", "Return", "Callfail", "Cep", "MonIn", "MonCmd", "MonB", "RbRun", "RbSleep",
-    "Cons", "MCall", "CCons", "KCst",
+    "Rdone", "Pending", "Return", "Callfail", "Cep", "MonIn", "MonCmd", "MonB", "MonPlan", "MonGot",
+    "MonUndone", "TagSite", "TagTask", "RbRun", "RbSleep",
+    "Cons", "VPair", "MCall", "CCons", "KCst",
     # decoders
     "contains", "rq", "rs", "ecf", "hs", "mask", "abortreq", "cres", "act", "chk", "ctl", "rstat", "owns",
-    "rdone", "pending", "return_", "callfail", "cep", "mon_in", "mon_cmd", "mon_b", "rb_run", "rb_sleep",
-    "cons", "m_call", "ccons", "k_cst", "unwrap", "decode", "head_name", "subject",
+    "rdone", "pending", "return_", "callfail", "cep", "mon_in", "mon_cmd", "mon_b", "mon_plan", "mon_got",
+    "mon_undone", "tag_site", "tag_task", "rb_run", "rb_sleep",
+    "cons", "vpair", "m_call", "ccons", "k_cst", "unwrap", "decode", "head_name", "subject",
 ]
 
 _new = tuple.__new__
@@ -60,6 +63,13 @@ CEP = "cep"
 MON_IN = "mon_in"
 MON_CMD = "mon_cmd"
 MON_B = "mon_b"
+MON_PLAN = "mon_plan"
+MON_GOT = "mon_got"
+MON_UNDONE = "mon_undone"
+#: the monitor's subtree tags (terms, the second argument of mon_in / mon_cmd, the argument of mon_b)
+MTAG_SITE = "mtag_site"
+MTAG_TASK = "mtag_task"
+MTAG_END = "mtag_end"     # (a constant: the B of a mon_undone when the recipe ended)
 #: the robot-backed explorer's marks (robot/explore.py adds them; not declared in the framework)
 RB_RUN = "rb_run"
 RB_SLEEP = "rb_sleep"
@@ -222,22 +232,63 @@ class Cep(NamedTuple):
 
 
 class MonIn(NamedTuple):
-    """``mon_in R Pair``: request R is in the subtree of the make at site Pair (a constant)."""
+    """``mon_in R Pair``: request R is in the subtree tagged Pair (an ``mtag_site`` or ``mtag_task`` term,
+    see :class:`TagSite` and :class:`TagTask`)."""
     request: object
     pair: object
     sorts = None
 
 
 class MonCmd(NamedTuple):
-    """``mon_cmd D Pair``: the command answered at D runs in the subtree of site Pair."""
+    """``mon_cmd D Pair``: the command answered at D runs in the subtree tagged Pair."""
     dest: object
     pair: object
     sorts = None
 
 
 class MonB(NamedTuple):
-    """``mon_b Pair``: a command of the subtree of site Pair (the B of a pair) has started."""
+    """``mon_b Pair``: a command of the subtree tagged Pair (the B of a pair) has started."""
     pair: object
+    sorts = None
+
+
+class MonPlan(NamedTuple):
+    """``mon_plan P R C Ts Cur``: plan instance P (a fresh name) of request R of constraint C, with
+    tasks Ts (a list of ``vtsk T``); Cur is ``tt`` while it is R's current plan, else ``ff``."""
+    plan: object
+    request: object
+    cst: object
+    tasks: object
+    current: object
+    sorts = None
+
+
+class MonGot(NamedTuple):
+    """``mon_got S I``: the request activation I sent at site S (a constant) was achieved."""
+    site: object
+    inst: object
+    sorts = None
+
+
+class MonUndone(NamedTuple):
+    """``mon_undone A B`` (only in the state right after the step): B (a site constant, or
+    ``mtag_end`` when the recipe ended) was achieved while site A's predicate was false."""
+    a: object
+    b: object
+    sorts = None
+
+
+class TagSite(NamedTuple):
+    """``mtag_site S I`` (a term): the request activation I sent at site S (a constant), and its subtree."""
+    site: object
+    inst: object
+    sorts = None
+
+
+class TagTask(NamedTuple):
+    """``mtag_task P T`` (a term): task T (a constant) of plan instance P (see :class:`MonPlan`)."""
+    plan: object
+    task: object
     sorts = None
 
 
@@ -261,6 +312,13 @@ class Cons(NamedTuple):
     """``vcons Head Tail``: a list cell."""
     head: object
     tail: object
+    sorts = ("val", "val")
+
+
+class VPair(NamedTuple):
+    """``vpair A B``: a pair of values (a mask entry is ``vpair (vtsk T) (vreq R)``)."""
+    first: object
+    second: object
     sorts = ("val", "val")
 
 
@@ -292,9 +350,12 @@ FACTS: dict = {
     CALLFAIL: Callfail, CEP: Cep,
 }
 #: family name -> record, for the facts the explorers add (never declared in the framework)
-EXPLORER_FAMILIES: dict = {MON_IN: MonIn, MON_CMD: MonCmd, MON_B: MonB, RB_RUN: RbRun, RB_SLEEP: RbSleep}
+EXPLORER_FAMILIES: dict = {MON_IN: MonIn, MON_CMD: MonCmd, MON_B: MonB, MON_PLAN: MonPlan, MON_GOT: MonGot,
+                           MON_UNDONE: MonUndone, RB_RUN: RbRun, RB_SLEEP: RbSleep}
+#: constructor name -> record, for the terms the explorers build (never declared in the framework)
+EXPLORER_TERMS: dict = {MTAG_SITE: TagSite, MTAG_TASK: TagTask}
 #: constructor name -> record, for the framework's terms of several arguments
-TERMS: dict = {"vcons": Cons, "m_call": MCall, "ccons": CCons, "k_cst": KCst}
+TERMS: dict = {"vcons": Cons, "vpair": VPair, "m_call": MCall, "ccons": CCons, "k_cst": KCst}
 #: constructor name -> the sort of its one argument (read with :func:`unwrap`)
 WRAPPERS: dict = {
     "vnum": "number", "vbool": "bool", "vstr": "string", "vrec": "val", "vopq": "number", "vsome": "val",
@@ -303,7 +364,7 @@ WRAPPERS: dict = {
     "k_local": "site", "k_switch": "cst", "k_retask": "task", "k_task": "task",
 }
 
-_RECORDS = {**FACTS, **EXPLORER_FAMILIES, **TERMS}
+_RECORDS = {**FACTS, **EXPLORER_FAMILIES, **EXPLORER_TERMS, **TERMS}
 
 
 # ------------------------------------------------------------------ decoders
@@ -393,6 +454,26 @@ def mon_b(f) -> MonB:
     return _new(MonB, f.args)
 
 
+def mon_plan(f) -> MonPlan:
+    return _new(MonPlan, f.args)
+
+
+def mon_got(f) -> MonGot:
+    return _new(MonGot, f.args)
+
+
+def mon_undone(f) -> MonUndone:
+    return _new(MonUndone, f.args)
+
+
+def tag_site(t) -> TagSite:
+    return _new(TagSite, t.args)
+
+
+def tag_task(t) -> TagTask:
+    return _new(TagTask, t.args)
+
+
 def rb_run(f) -> RbRun:
     return _new(RbRun, f.args)
 
@@ -403,6 +484,10 @@ def rb_sleep(f) -> RbSleep:
 
 def cons(t) -> Cons:
     return _new(Cons, t.args)
+
+
+def vpair(t) -> VPair:
+    return _new(VPair, t.args)
 
 
 def m_call(t) -> MCall:
