@@ -219,17 +219,34 @@ def exec_(start: s.Expr) -> s.Exec:
     return s.Exec(BUILT, "*", start)
 
 
+#: a forward rule longer than this is printed one premise a line
+WIDE = 100
+
+
 def format_items(items: list) -> str:
-    """The items as CLF text (one per line; a comment as ``% text``), for people to read."""
+    """The items as CLF text (one per line; a comment as ``% text``; a long forward rule one
+    premise a line), for people to read."""
     out = []
     for it in items:
         if isinstance(it, Comment):
             out.append("\n".join("% " + line if line else "" for line in it.text.split("\n")))
-        elif isinstance(it, Rule):
-            out.append(format_item(it.item()))
         else:
-            out.append(format_item(it))
+            out.append(_format_decl(it.item() if isinstance(it, Rule) else it))
     return "\n".join(out) + "\n"
+
+
+def _format_decl(item) -> str:
+    text = format_item(item)
+    if len(text) <= WIDE or not isinstance(item, s.Decl) or item.definition is not None:
+        return text
+    parts, e = [], item.classifier
+    while isinstance(e, s.Arrow) and e.op == "-o" and not e.reversed and \
+            isinstance(e.left, (s.App, s.Id, s.Bang, s.Affine)):
+        parts.append(format_expr(e.left))
+        e = e.right
+    if not parts or not isinstance(e, s.Monad):
+        return text
+    return f"{item.name} : " + "\n    -o ".join(parts + [format_expr(e)]) + "."
 
 
 def format_term(e: s.Expr) -> str:

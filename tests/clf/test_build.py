@@ -97,3 +97,11 @@ def test_any_built_rule_reads_back_as_itself(premises, conclusions, bang):
         premises = premises[:-1] + [q("!{}", premises[-1])]
     rule = Rule("r", premises, conclusions)
     assert reparsed([rule]) == [plain(rule.item())]
+
+
+def test_a_long_rule_prints_one_premise_a_line_and_reads_back():
+    premises = [q("contains {} V{}".format(f"v_cell_number_{i}", i)) for i in range(6)] + [q("!peval vnil E vnil X Y")]
+    rule = Rule("long", premises, [q("done {}", f"V{i}") for i in range(3)], fresh=("r",))
+    text = format_items([rule])
+    assert text.count("\n    -o ") == len(premises) and max(len(x) for x in text.splitlines()) <= 100
+    assert reparsed([rule]) == [plain(rule.item())]
