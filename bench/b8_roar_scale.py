@@ -17,6 +17,38 @@ Generated networks (``network(shape, n)``):
   aborts the ensures; each worker calls a primitive that may fail (retried at most twice).
   The workers interleave: the state space grows exponentially with N.
 
+* ``twins-N`` (only with ``--symmetry``): the planner calls the primitive itself, and N-1
+  identical workers no agent sends anything: a verified symmetry of order (N-1)! that reduces
+  nothing (the workers never move), so its rows measure what symmetry reduction costs a state.
+
+``--symmetry`` measures every model a second time with symmetry reduction (``roar/symmetry.py``:
+the verified symmetries of the compiled model, the time to find and verify them counted in the
+search's) and prints what each found. Figures (2026-11-27, same machine, same load caveat;
+``--only fan-4,fan-6,twins-4,twins-6 --max-states 6000 --symmetry``):
+
+=====================  ======  =========  ============  ===========  ================================
+model                  states  states/s   states/cpu-s  bytes/state  symmetry
+=====================  ======  =========  ============  ===========  ================================
+fan-4                  6,001   1,362      2,056         4,718
+fan-4 (symmetry)       6,001   1,335      2,070         4,761        none found (refused: see below)
+fan-6                  6,001   954        1,954         11,074
+fan-6 (symmetry)       6,001   642        1,901         11,096       none found (refused)
+twins-4                58      1,002      2,097         4,520
+twins-4 (symmetry)     58      443        877           4,520        w1, w2, w3: order 6
+twins-6                58      579        1,803         4,520
+twins-6 (symmetry)     58      55         227           11,299       w1..w5: order 120
+=====================  ======  =========  ============  ===========  ================================
+
+The fan workers are identical, but the planner sends to w1 first (and its ``cdom`` list, its
+environment and its aborts name them in order): exchanging two workers maps the planner's code
+onto code the model does not have, so verification refuses the candidate (``declaration
+'cdom_r_planner_work_r' has no image``) and the search is the plain one (same states; the
+states/s difference on fan-6 is the loaded machine: the CPU columns agree). Every agent of a
+spec that acts is fixed by any symmetry of its compiled model (docs/checking.md, Symmetry
+reduction), so on specs symmetry reduction is exact but saves nothing; on ``.clf`` models with
+interchangeable processes it does (tests/explore/test_symmetry.py: 88 states to 6, 20 to 7).
+The twins rows show the cost: one key per element of the group, per state.
+
 ``python bench/run.py b8 [--quick]``; ``python bench/b8_roar_scale.py --python-path OLD`` runs
 the same measurements with another checkout of roar_formal first on ``sys.path`` (a before/after
 comparison); ``--only NAMES`` and ``--max-states N`` narrow it (the same work on both sides).
@@ -92,11 +124,22 @@ def network(shape: str, n: int) -> tuple[str, str]:
         out = [agent("planner", body, private="int tries = 0; ")]
         out += [agent(w, worker, funcs="bool op(); ", private="int tries = 0; ") for w in ws]
         return "\n".join(out), "planner::done == true"
+    if shape == "twins":
+        # the planner calls the primitive itself; N-1 identical workers no agent sends anything: a
+        # verified symmetry of order (N-1)! that reduces nothing (they never move), so its rows
+        # measure what symmetry reduction costs per state (a key per element of the group)
+        ws = [f"w{i}" for i in range(1, n)]
+        out = [agent("planner", worker, funcs="bool op(); ", private="int tries = 0; int spare = 0; ")]
+        out += [agent(w, worker, funcs="bool op(); ", private="int tries = 0; ") for w in ws]
+        return "\n".join(out), "planner::done == true"
     raise ValueError(shape)
 
 
-def one(target: str, request: str | None, max_seconds: float, max_states: int | None = None) -> dict:
-    """Explore one job (a .toml) or generated spec (a .roar with ``request``) in this process."""
+def one(target: str, request: str | None, max_seconds: float, max_states: int | None = None,
+        symmetry: bool = False) -> dict:
+    """Explore one job (a .toml) or generated spec (a .roar with ``request``) in this process; with
+    ``symmetry``, keyed up to the model's verified symmetries (roar/symmetry.py), the time to find
+    and verify them included in the search's."""
     import resource
     from roar_formal.clf.query import with_big_stack
 
@@ -124,14 +167,24 @@ def one(target: str, request: str | None, max_seconds: float, max_states: int | 
         start = program.start_context(start_d.start)
         system = RoarSystem(model, start, Options(progress_rules=PROGRESS_RULES, fairness="agent"))
         before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-        explorer = Explorer(system)
         t = time.perf_counter()
         c = time.process_time()
+        note = ""
+        if symmetry:
+            from roar_formal.explore.symmetry import SymmetricSystem
+            from roar_formal.roar.symmetry import discover
+            sym = discover(model, start)
+            note = sym.note()
+            if sym.order > 1:
+                system = SymmetricSystem(system, sym.group, note)
+        explorer = Explorer(system)
         g = explorer.run(Budget(max_seconds=max_seconds, max_states=max_states))
         cpu = time.process_time() - c
         secs = time.perf_counter() - t
         after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-        return {"name": name, "states": g.n_states, "transitions": g.n_edges, "complete": bool(g.complete),
+        if symmetry:
+            name += " (symmetry)"
+        return {"name": name, "symmetry": note, "states": g.n_states, "transitions": g.n_edges, "complete": bool(g.complete),
                 "seconds": secs, "states_per_s": g.n_states / secs, "cpu_seconds": cpu,
                 "states_per_cpu_s": g.n_states / max(cpu, 1e-9),
                 "bytes_per_state": (after - before) * 1024 / max(g.n_states, 1), "peak_mb": after / 1024}
@@ -139,13 +192,13 @@ def one(target: str, request: str | None, max_seconds: float, max_states: int | 
     return with_big_stack(go)
 
 
-def targets(quick: bool, folder: Path) -> list[tuple[str, str | None]]:
+def targets(quick: bool, folder: Path, symmetry: bool = False) -> list[tuple[str, str | None]]:
     from roar_formal.verify.jobs import load_job
     out: list[tuple[str, str | None]] = []
     for p in sorted((ROOT / "checker").glob("*.toml")):
         if load_job(p).is_roar:
             out.append((str(p), None))
-    for shape in ("chain", "fan"):
+    for shape in ("chain", "fan") + (("twins",) if symmetry else ()):
         for n in ((4, 6) if quick else (4, 6, 8)):
             text, req = network(shape, n)
             path = folder / f"{shape}-{n}.roar"
@@ -155,25 +208,30 @@ def targets(quick: bool, folder: Path) -> list[tuple[str, str | None]]:
 
 
 def measure(python_path: str | None, quick: bool, max_seconds: float, max_states: int | None = None,
-            only: str | None = None) -> list[dict]:
+            only: str | None = None, symmetry: bool = False) -> list[dict]:
+    """Every target measured; with ``symmetry``, each one a second time with symmetry reduction."""
     rows = []
     env = dict(os.environ)
     if python_path:
         env["PYTHONPATH"] = python_path
     with tempfile.TemporaryDirectory() as tmp:
-        for target, req in targets(quick, Path(tmp)):
+        for target, req in targets(quick, Path(tmp), symmetry):
             if only and not any(w in Path(target).stem for w in only.split(",")):
                 continue
-            cmd = [sys.executable, __file__, "--one", target, "--max-seconds", str(max_seconds)]
-            if max_states is not None:
-                cmd += ["--max-states", str(max_states)]
-            if req is not None:
-                cmd += ["--request", req]
-            out = subprocess.run(cmd, capture_output=True, text=True, env=env)
-            if out.returncode != 0:
-                rows.append({"name": Path(target).stem, "error": out.stderr.strip().splitlines()[-1:]})
-                continue
-            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            for sym in ((False, True) if symmetry else (False,)):
+                cmd = [sys.executable, __file__, "--one", target, "--max-seconds", str(max_seconds)]
+                if max_states is not None:
+                    cmd += ["--max-states", str(max_states)]
+                if req is not None:
+                    cmd += ["--request", req]
+                if sym:
+                    cmd += ["--symmetry"]
+                out = subprocess.run(cmd, capture_output=True, text=True, env=env)
+                if out.returncode != 0:
+                    rows.append({"name": Path(target).stem + (" (symmetry)" if sym else ""),
+                                 "error": out.stderr.strip().splitlines()[-1:]})
+                    continue
+                rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
     return rows
 
 
@@ -204,14 +262,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-states", type=int, default=None, help="state budget of each search (default: none)")
     ap.add_argument("--only", default=None, metavar="NAMES",
                     help="comma-separated parts of the names of the models to measure (default: all)")
+    ap.add_argument("--symmetry", action="store_true",
+                    help="measure each model a second time with symmetry reduction (its verified symmetries, "
+                         "or none: the row says which)")
     args = ap.parse_args(argv)
     if args.one:
-        print(json.dumps(one(args.one, args.request, args.max_seconds, args.max_states)))
+        print(json.dumps(one(args.one, args.request, args.max_seconds, args.max_states, args.symmetry)))
         return 0
-    rows = measure(args.python_path, args.quick, args.max_seconds, args.max_states, args.only)
+    rows = measure(args.python_path, args.quick, args.max_seconds, args.max_states, args.only, args.symmetry)
     print(" | ".join(COLUMNS))
     for r in table(rows):
         print(" | ".join(r))
+    for r in rows:
+        if r.get("symmetry"):
+            print(f"{r['name']}: {r['symmetry']}")
     return 0
 
 

@@ -17,6 +17,7 @@ from typing import Optional
 
 from ..errors import Pos, TypeError_, UnsupportedError
 from . import surface as S
+from .parser import parse_program
 from .builtins import BUILTIN_FAMILIES, BUILTIN_TYPES, BUILTINS, is_builtin, kind_of
 from .printer import IMPLICIT, show
 from .terms import (NUMBER, STRING, Aff, Bang, BVar, Const, EVar, Exists, Imp, Lam, Monad, Node, One, Param, Pi, Root,
@@ -1026,6 +1027,24 @@ def elaborate_steps(program: S.Program, sig: Optional[Signature] = None, strict:
         elif isinstance(item, S.Mode):
             _declare_mode(sig, item)
         yield sig, directive
+
+
+def extend_signature(base: Signature, items, file: str = "<extension>", failed: Optional[list] = None) -> Signature:
+    """A copy of ``base`` extended with ``items``: syntax trees (declarations and directives, as a
+    compiler builds them) or CLF text, checked one item at a time (positions in errors of text
+    refer to the text alone). ``base`` is not changed. ``failed``, when given, gets the item that
+    did not check (an error names the item, whatever positions its nodes have)."""
+    sig = Signature(dict(base.consts), list(base.directives), dict(base.modes), dict(base.implicit_modes), file)
+    program = parse_program(items, file) if isinstance(items, str) else S.Program(file, tuple(items))
+    done = 0
+    try:
+        for _ in elaborate_steps(program, sig):
+            done += 1
+    except Exception:
+        if failed is not None and done < len(program.items):
+            failed.append(program.items[done])
+        raise
+    return sig
 
 
 def elaborate(program: S.Program, strict: bool = False) -> Signature:

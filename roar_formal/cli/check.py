@@ -37,6 +37,9 @@ def register(app: typer.Typer) -> None:
         max_seconds: Optional[float] = typer.Option(
             None, "--max-seconds",
             help="Overrides every job's time bound (a spec or model named directly, with no job file: 600 s by default)."),
+        symmetry: bool = typer.Option(False, "--symmetry", help="Symmetry reduction: one state per set of states "
+                                      "that differ only by exchanging interchangeable agents (or constants), when "
+                                      "the model has verified symmetries (docs/checking.md, Symmetry reduction)."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the facts each step consumed and produced."),
         traces: Path = typer.Option(Path("roar-traces"), "--traces",
@@ -80,6 +83,12 @@ def register(app: typer.Typer) -> None:
         # every job file is checked before anything runs
         jobs = load_jobs(paths, request=request, properties=props, time=time, wait_timeout=wait_timeout)
         files = [j.path for j in jobs if not is_model_path(j.path)]
+        if symmetry:   # every job named, as the bounds below (refused before anything runs)
+            from ..verify.jobs import symmetry_refusals
+            for job in jobs:
+                inner = job.job   # the verify.jobs.Job the API's job wraps
+                inner.symmetry = True
+                symmetry_refusals(inner)
         for job in jobs:   # command-line bounds override the jobs'
             if max_states is not None:
                 job.budget.max_states = max_states

@@ -13,10 +13,9 @@ from functools import lru_cache
 from importlib import resources
 from typing import Optional, Sequence, Union
 
-from ..clf import surface as S
 from ..clf.parser import parse_program
 from ..clf.program import Program
-from ..clf.signature import Signature, elaborate, elaborate_steps
+from ..clf.signature import Signature, elaborate, extend_signature
 
 
 @lru_cache(maxsize=1)
@@ -28,25 +27,6 @@ def framework_text() -> str:
 def framework_signature() -> Signature:
     """The framework, elaborated once (never changed: programs extend copies of it)."""
     return elaborate(parse_program(framework_text(), "<framework>"))
-
-
-def extend_signature(base: Signature, items: Union[str, Sequence], file: str = "<compiled spec>",
-                     failed: Optional[list] = None) -> Signature:
-    """A copy of ``base`` extended with ``items``: syntax trees (declarations and directives, as a
-    compiler builds them), or CLF text, checked one item at a time; positions in errors of text
-    refer to ``text`` alone. ``base`` is not changed. ``failed``, when given, gets the item that
-    did not check (an error names the item, whatever positions its nodes have)."""
-    sig = Signature(dict(base.consts), list(base.directives), dict(base.modes), dict(base.implicit_modes), file)
-    program = parse_program(items, file) if isinstance(items, str) else S.Program(file, tuple(items))
-    done = 0
-    try:
-        for _ in elaborate_steps(program, sig):
-            done += 1
-    except Exception:
-        if failed is not None and done < len(program.items):
-            failed.append(program.items[done])
-        raise
-    return sig
 
 
 def extend_framework(items: Union[str, Sequence], file: str = "<compiled spec>",

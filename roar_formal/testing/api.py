@@ -369,7 +369,7 @@ class AgentSpec:
         ps = PropertySpec(check=props, progress=list(progress), sequence_recipes=list(sequence_recipes),
                           defaulted=defaulted)
         pos = _caller_pos()
-        ps.never, ps.spec_never = _never(never, pos)
+        ps.never, ps.spec_never = split_never(never, pos)
         for pair in incompatible:
             if isinstance(pair, str) or len(pair) != 2 or not all(isinstance(x, str) and "::" in x for x in pair):
                 raise RoarError(f"incompatible is a list of pairs of tasks named 'agent::task', not {pair!r}", pos)
@@ -404,7 +404,7 @@ class AgentSpec:
         if robot_never or robot_always:
             props.append("robot-invariant")
         ps = PropertySpec(check=props, progress=list(progress))
-        ps.never, ps.spec_never = _never(never, pos)
+        ps.never, ps.spec_never = split_never(never, pos)
         ps.robot_never = [(c, pos) for c in robot_never]
         ps.robot_always = [(c, pos) for c in robot_always]
         if isinstance(quantise, str):
@@ -559,9 +559,10 @@ def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple)
     return out
 
 
-def _never(never: Sequence[str], pos: Pos) -> tuple[list, list]:
-    """``never`` of an exploration of a spec, read as a job file reads ``[invariant] never``: CLF
-    patterns (``(text, pos)``) and predicates in the spec's terms (parsed ``Formula``s)."""
+def split_never(never: Sequence[str], pos: Pos) -> tuple[list, list]:
+    """``never`` of an exploration of a spec (or of a stateful machine), read as a job file reads
+    ``[invariant] never``: CLF patterns (``(text, pos)``) and predicates in the spec's terms
+    (parsed ``Formula``s)."""
     from ..roar.props import looks_like_spec, parse_formula
     if isinstance(never, str):
         never = [never]

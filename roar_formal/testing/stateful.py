@@ -57,7 +57,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
 from ..errors import Pos, RoarError
-from .api import AgentSpec, load_spec
+from .api import AgentSpec, load_spec, split_never
 
 __all__ = ["RoarMachine"]
 
@@ -93,9 +93,16 @@ class _Setup:
         pairs = sequential_pairs(self.model) if cls.sequential_achievement else []
         self.system = RoarSystem(self.model, self.start, Options(progress_rules=PROGRESS_RULES, fairness="agent"),
                                  pairs)
-        never = list(cls.never)
-        self.never = make_never(self.model.text, str(spec.path or spec.name),
-                                [(p, _class_pos(cls)) for p in never]) if never else None
+        clf_never, spec_never = split_never(list(cls.never), _class_pos(cls))
+        self.never = make_never(self.model.program().sig, str(spec.path or spec.name), clf_never) \
+            if clf_never else None
+        #: predicates in the spec's terms, read on each state (as a job's [invariant] never)
+        self.spec_never = [f.bind(self.model) for f in spec_never]
+        for f in self.spec_never:
+            if f.events:
+                raise RoarError(f"{cls.__name__}.never: {f.text!r} names an event (a step): a machine reads "
+                                f"its predicates on states; check events with explore(never=...) or a job file",
+                                f.at(1))
         self.outcome_rules = {}
         for fc, (owner, name) in self.model.functions.items():
             self.outcome_rules[f"outcome_{fc}_"] = f"{owner}::{name}" if owner else name
@@ -285,7 +292,8 @@ class RoarMachine(RuleBasedStateMachine):
 
     spec: ClassVar[Union[AgentSpec, str, Path, None]] = None
     request: ClassVar[Optional[str]] = None
-    #: CLF patterns no reachable state may match (docs/checking.md, "Invariants")
+    #: predicates in the spec's terms no reachable state may satisfy ("arm::holding == true &&
+    #: gripper::closed == false"), or CLF patterns no state may match (docs/checking.md, "Invariants")
     never: ClassVar[Sequence[str]] = ()
     #: a quiescent state must be final: every request success or failure, no recipe live
     check_deadlock: ClassVar[bool] = True
@@ -520,6 +528,12 @@ class RoarMachine(RuleBasedStateMachine):
             why = s.never(self.state)
             if why:
                 self.fail(f"invariant violated: {why}")
+        if s.spec_never:
+            from ..roar.props import view_of
+            view = view_of(s.model, self.state)
+            for f in s.spec_never:
+                if f.pf(view):
+                    self.fail(f"invariant violated: a reachable state satisfies never {f.text!r}: {f.explain(view)}")
         if self.exclusive_writes:
             w = s.system.shared_write(self.state)
             if w:

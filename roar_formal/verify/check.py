@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, Optional, Union
 
 from ..clf.backward import Backward
 from ..clf.context import Context
@@ -21,7 +21,7 @@ from ..clf.parser import parse_expr
 from ..clf.forward import enabled_steps
 from ..clf.program import Program
 from ..clf.query import with_big_stack
-from ..clf.signature import Elaborator, ExecDirective
+from ..clf.signature import Elaborator, ExecDirective, Signature, extend_signature
 from ..errors import RoarError
 from ..trace.format import write_trace
 from ..explore.graph import StateGraph
@@ -30,6 +30,7 @@ from .claims import trace_claim
 from .jobs import Job
 from ..explore.properties import check_states, Verdict, check_deadlock, check_livelock
 from ..explore.search import Budget, Explorer, rss_mb
+from ..explore.symmetry import discover_clf
 from ..explore.system import ClfSystem, Options
 
 FIRST_ROUND = 20_000
@@ -47,6 +48,7 @@ class JobResult:
     program: Optional[Program] = None
     reduction: str = "off"  # 'on', 'off' or 'not used by the ground backend'
     fingerprint: Optional[dict] = None  # of the sources explored (trace/fingerprint.py)
+    symmetry: str = ""  # symmetry reduction: what it found (the job turned it on), else ""
 
     @property
     def unexpected(self) -> list[str]:
@@ -115,17 +117,19 @@ def _split_tensor(text: str) -> list[str]:
     return [p for p in parts if p]
 
 
-def make_never(program_text: str, file: str, patterns: list) -> Callable[[Context], Optional[str]]:
+def make_never(program: Union[str, Signature], file: str, patterns: list) -> Callable[[Context], Optional[str]]:
     """Invariant patterns as rules that must never be enabled: pattern ``A * B`` is violated by
     a state exactly when ``A -o B -o {1}`` could fire there (a sub-multiset match, with
-    upper-case names as pattern variables and ``!A`` for persistent facts)."""
+    upper-case names as pattern variables and ``!A`` for persistent facts). ``program`` is the
+    program's text, or its elaborated signature (a compiled model's: extended, not re-read)."""
     rules = []
     for k, (pat, pos) in enumerate(patterns):
         parts = _split_tensor(pat)
         rules.append(f"never_{k} : " + " -o ".join(parts) + " -o {1}.")
     extra = "\n".join(rules) + "\n"
     try:
-        prog = Program.from_text(program_text + "\n" + extra, file)
+        prog = Program.from_text(program + "\n" + extra, file) if isinstance(program, str) else \
+            Program(extend_signature(program, extra, file))
     except RoarError as exc:
         # the error is in a pattern: point at the property file
         k = next((i for i, r in enumerate(rules) if r.split(" :")[0] in exc.message), None)
@@ -181,8 +185,9 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
             raise RoarError(why, job.time.where[1])
         raise RoarError(f"{job.spec}: {why}")   # --wait-timeout of `check SPEC`, the API's explore
     program, start, options, pairs = roar_setup(job, model)
+    sym = roar_symmetry(job, model, start) if job.symmetry else None
     props = job.props
-    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \
+    never = make_never(model.program().sig, str(job.spec), props.never) if "invariant" in props.check and props.never \
         else None
     spec_checks = spec_properties(job, model)
     reduction = "off"
@@ -219,12 +224,13 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
         return verdicts
 
     def explore(opts: Options):
-        ex = make_explorer(job, RoarSystem(model, start, opts, pairs), on_progress)
+        ex = make_explorer(job, symmetric(RoarSystem(model, start, opts, pairs), sym), on_progress)
         ctx_of = ex.states.__getitem__   # one per explorer: the decoded states are cached on it
         return ex, lambda g: decide(g, ex.states, ex.system, ctx_of, ex.steps.__getitem__)
 
     explorer, graph, verdicts = _search(job, t0, explore, options)
     _mark_reduction(job, verdicts, reduction)
+    _mark_symmetry(sym, verdicts, graph)
     mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
                   if verdicts[p].status != want]
     backend = "general" + VISITED_NOTE[job.visited]
@@ -232,9 +238,113 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
         from .cluster import cluster_note
         backend += cluster_note(explorer)
     res = JobResult(job, verdicts, graph, backend, time.perf_counter() - t0, rss_mb(), mismatches, program,
-                    reduction, fingerprint)
+                    reduction, fingerprint, sym.note if sym is not None else "")
     res.roar = (model, start, explorer)
     return res
+
+
+@dataclass
+class SymmetryUse:
+    """The symmetries a job's search uses: the group (identity first) and the report's sentence."""
+
+    group: list
+    note: str
+
+
+def symmetric(system, sym: Optional[SymmetryUse]):
+    """``system``, its states keyed up to the symmetries when the job found some."""
+    if sym is None or len(sym.group) < 2:
+        return system
+    from ..explore.symmetry import SymmetricSystem
+    return SymmetricSystem(system, sym.group, sym.note)
+
+
+def _mark_symmetry(sym: Optional[SymmetryUse], verdicts: dict, graph: StateGraph) -> None:
+    if sym is None:
+        return
+    quotient = len(sym.group) > 1
+    for v in verdicts.values():
+        v.message += (f" ({sym.note}; {graph.n_states:,} states of the quotient)" if quotient else f" ({sym.note})")
+        v.details["symmetry"] = sym.note
+        v.details["symmetry_order"] = len(sym.group)
+
+
+def _symmetry_where(job: Job):
+    return job.symmetry_at, ("symmetry = true" if job.symmetry_at is not None else "--symmetry")
+
+
+def _refuse_named(job: Job, named, permuted: str) -> None:
+    """Refuse the job's patterns and spec predicates that name a constant or agent the group moves:
+    a property that tells the images of a state apart is not decided by the quotient."""
+    where, opt = _symmetry_where(job)
+    props = job.props
+    for text, pos in props.never if "invariant" in props.check else ():
+        hit = named(text)
+        if hit:
+            raise RoarError(f"{opt}: the invariant pattern {text!r} names {hit[0]}, one of the {permuted} symmetry "
+                            f"reduction interchanges: the quotient cannot tell its states apart; check it without "
+                            f"symmetry", pos)
+    if props.accept and named(props.accept):
+        raise RoarError(f"{opt}: the [deadlock] accept pattern names {named(props.accept)[0]}, one of the {permuted} "
+                        f"symmetry reduction interchanges; check it without symmetry", where)
+    formulas = (props.spec_never + props.spec_always) if "invariant" in props.check else []
+    formulas += [f for n, f in props.temporal.items() if n in props.check]
+    for f in formulas:
+        hit = named(f.text)
+        if hit:
+            raise RoarError(f"{opt}: property {f.text!r} names agent {hit[0]}, one of the {permuted} symmetry "
+                            f"reduction interchanges: the quotient keeps one state of each set of states that differ "
+                            f"only by exchanging them, so it cannot decide a property that tells them apart; check it "
+                            f"without symmetry", f.at(hit[1]) or where)
+    if "incompatible-tasks" in props.check and props.incompatible_pairs:
+        for pair in props.incompatible_pairs:
+            for text, pos in pair:
+                hit = named(text)
+                if hit:
+                    raise RoarError(f"{opt}: incompatible-tasks names {text!r}, of agent {hit[0]}, one of the "
+                                    f"{permuted} symmetry reduction interchanges; check it without symmetry", pos)
+
+
+def clf_symmetry(job: Job, program: Program, start: Context) -> SymmetryUse:
+    """The interchangeable constants of a .clf model (explore/symmetry.py, discover_clf), verified."""
+    import re
+    from ..explore.symmetry import close_group, factorial_order, MAX_ORDER, transpositions, verify
+    blocks, notes = discover_clf(program, start)
+    gens = transpositions(blocks)
+    for g in gens:   # (discover_clf verified them; a group is used only once each generator passes)
+        chk = verify(program.sig, start, g)
+        if not chk.ok:
+            raise RoarError(f"symmetry reduction: a candidate symmetry failed verification: {chk.reason}")
+        g.rules = chk.rules
+    if factorial_order(len(b) for b in blocks) > MAX_ORDER:
+        close_group(gens)   # refuses, with the message
+    group = close_group(gens)
+    if len(group) > 1:
+        names = [[m[""] for m in b] for b in blocks]
+        k = sum(len(b) for b in names)
+        note = (f"symmetry: {k} constants interchangeable ({'; '.join(', '.join(b) for b in names)}), "
+                f"group of order {len(group):,}")
+        moved = {m for b in names for m in b}
+
+        def named(text: str):
+            for w in re.finditer(r"[A-Za-z_][A-Za-z0-9_']*", text):
+                if w.group(0) in moved:
+                    return w.group(0), w.start() + 1
+            return None
+        _refuse_named(job, named, "constants")
+    else:
+        why = "; ".join(notes) if notes else "no two constants of one type are mentioned by no rule"
+        note = f"symmetry: none found ({why}); the search is the plain one"
+    return SymmetryUse(group, note)
+
+
+def roar_symmetry(job: Job, model, start: Context) -> SymmetryUse:
+    """The interchangeable agents of a compiled spec (roar/symmetry.py), verified on the model."""
+    from ..roar.symmetry import discover, names_permuted
+    sym = discover(model, start)
+    if sym.order > 1:
+        _refuse_named(job, lambda text: names_permuted(sym, text), "agents")
+    return SymmetryUse(sym.group, sym.note())
 
 
 def spec_properties(job: Job, model):
@@ -452,7 +562,8 @@ def _run_job(job: Job, on_progress) -> JobResult:
         if "invariant" in props.check else None
     ground_model = None
     grounding_stopped = None
-    if job.backend in ("auto", "ground") and job.search == "bfs" and job.visited == "exact":
+    sym = clf_symmetry(job, program, start) if job.symmetry else None
+    if job.backend in ("auto", "ground") and job.search == "bfs" and job.visited == "exact" and sym is None:
         deadline = t0 + job.budget.max_seconds if job.budget.max_seconds is not None else None
         try:
             ground_model = GroundModel(program, start, options, budget=job.budget, deadline=deadline)
@@ -492,7 +603,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
         graph, verdicts = search_rounds(job, t0, rounds, lambda g: decide(g, rounds.state_of))
     else:
         def explore(opts: Options):
-            ex = make_explorer(job, ClfSystem(program, start, opts), on_progress)
+            ex = make_explorer(job, symmetric(ClfSystem(program, start, opts), sym), on_progress)
             return ex, lambda g: decide(g, lambda sid: ex.states[sid])
 
         _explorer, graph, verdicts = _search(job, t0, explore, options)
@@ -501,13 +612,14 @@ def _run_job(job: Job, on_progress) -> JobResult:
             from .cluster import cluster_note
             backend += cluster_note(_explorer)
     _mark_reduction(job, verdicts, reduction)
+    _mark_symmetry(sym, verdicts, graph)
     mismatches = []
     for p, want in job.expect.items():
         got = verdicts[p].status
         if got != want:
             mismatches.append(f"{p}: expected {want}, got {got}")
     return JobResult(job, verdicts, graph, backend, time.perf_counter() - t0, rss_mb(), mismatches, program,
-                     reduction, fingerprint)
+                     reduction, fingerprint, sym.note if sym is not None else "")
 
 
 class _GroundRounds:

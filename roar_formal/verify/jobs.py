@@ -102,6 +102,8 @@ class Job:
     crashes: Any = None                 # [faults]: roar.compile.Crashes, the agents that may crash (None: none)
     cluster: Any = None                 # [cluster] (search = "distributed", or a swarm on a cluster): verify.cluster.ClusterSetup
     time: Any = None                    # time / [time]: roar.compile.Timing (None: untimed; docs/semantics.md, Time)
+    symmetry: bool = False              # symmetry reduction (explore/symmetry.py; docs/checking.md, Symmetry reduction)
+    symmetry_at: Optional[Pos] = None   # where the job file turns it on (None: --symmetry, or off)
 
     @property
     def is_roar(self) -> bool:
@@ -543,7 +545,7 @@ def load_job(path: str | Path) -> Job:
     d = _load_toml(path)
     _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
                      "canonical", "reduction", "visited", "swarm", "bitstate", "bounds", "expect", "robot", "faults",
-                     "time",
+                     "time", "symmetry",
                      "cluster"},
                  "a job file", path)
     base = path.parent
@@ -639,6 +641,13 @@ def load_job(path: str | Path) -> Job:
         job.canonical = _typed(d, "canonical", bool, path, "a job file")
     if "reduction" in d:
         job.reduction = _typed(d, "reduction", bool, path, "a job file")
+    if "symmetry" in d:
+        v = d["symmetry"]
+        if not isinstance(v, bool):
+            raise RoarError(f"'symmetry' in a job file must be true or false, not {v!r}"[:300],
+                            _value_pos(path, "symmetry"))
+        job.symmetry = v
+        job.symmetry_at = _value_pos(path, "symmetry") if v else None
     if "bounds" in d:
         b = _typed(d, "bounds", dict, path, "a job file")
         _expect_keys(b, {"max_states", "max_seconds", "max_memory_mb"}, "[bounds]", path)
@@ -700,7 +709,42 @@ def load_job(path: str | Path) -> Job:
                         "model state with the robot's): remove it", Pos(str(path), _line_of(path, "visited"), 1))
     if job.visited == "bitstate":
         _bitstate_refusals(job, path)
+    if job.symmetry:
+        symmetry_refusals(job)
     return job
+
+
+#: properties symmetry reduction does not decide: they read cycles, where weak fairness per
+#: process is judged on the quotient's edges, whose processes are renamed from state to state
+SYMMETRY_CYCLE_PROPERTIES = ("livelock", "mission-completion")
+
+
+def symmetry_refusals(job: Job) -> None:
+    """What symmetry reduction cannot do, refused before the search (at the job file's
+    ``symmetry`` line, or naming --symmetry): properties read on cycles (livelock, fair cycles),
+    and the modes it is not combined with. Properties that name one of the agents
+    it permutes are refused once the symmetries are known (verify/check.py)."""
+    where = job.symmetry_at
+    opt = "symmetry = true" if where is not None else "--symmetry"
+    cycles = [p for p in job.props.check if p in SYMMETRY_CYCLE_PROPERTIES]
+    cycles += [n for n, f in job.props.temporal.items() if n in job.props.check and f.form in ("eventually", "leads-to")]
+    if cycles:
+        extra = (" (a default property of a spec: name the properties to check, e.g. --property "
+                 "deadlock,mission-failure or [expect] deadlock)") if job.props.defaulted else ""
+        raise RoarError(f"{opt}: {', '.join(cycles)} read{'s' if len(cycles) == 1 else ''} the cycles of the state "
+                        f"graph under weak fairness per process, which symmetry reduction does not keep (a cycle of "
+                        f"the quotient renames the processes from state to state){extra}: check "
+                        f"{'it' if len(cycles) == 1 else 'them'} without symmetry", where)
+    for bad, why in ((job.reduction, "partial-order reduction"),
+                     (not job.canonical, "canonical = false (its least key over a state's images is read on "
+                                         "canonical keys)"),
+                     (job.robot is not None, "robot-backed jobs"),
+                     (job.backend == "ground", "the ground backend (symmetry reduction runs on the general one)"),
+                     (job.search in ("swarm", "distributed"), f"search = \"{job.search}\""),
+                     ("sequential-achievement" in job.props.check,
+                      "sequential-achievement (its monitor names statement sites of particular agents)")):
+        if bad:
+            raise RoarError(f"{opt} is not available with {why}", where)
 
 
 def _bitstate_refusals(job: Job, path: Path) -> None:

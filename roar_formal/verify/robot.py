@@ -176,7 +176,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
     conditions = _conditions(job, scenario) if "robot-invariant" in job.props.check else []
     program, start, options, pairs = roar_setup(job, model)
     props = job.props
-    never = make_never(model.text, str(job.spec), props.never) if "invariant" in props.check and props.never \
+    never = make_never(model.program().sig, str(job.spec), props.never) if "invariant" in props.check and props.never \
         else None
     abstraction = setup.quantise or Abstraction()
     choices = FaultChoices(dict(setup.faults))

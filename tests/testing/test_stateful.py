@@ -112,3 +112,35 @@ def test_helpers_read_the_state_and_mistakes_are_reported(examples):
     with pytest.raises(RoarError, match="invariant pattern 'nosuch X': unknown type family 'nosuch'") as e:
         BadPattern()
     assert (e.value.pos.file, e.value.pos.line) == (__file__, line)
+
+
+@pytest.mark.parametrize("predicate", ["gripper::busy == true && gripper::holding == true",
+                                       "gripper::busy == true && cell::lifted == true"])
+def test_never_predicates_in_the_spec_terms_agree_with_the_explorer(examples, predicate):
+    """``never`` takes predicates in the spec's terms, as ``explore(never=...)`` and job files do;
+    the explorer's verdict on the same predicate is the oracle."""
+    spec = load_spec(examples / "pick_fixed" / "pick.roar")
+    verdict = spec.explore("cell::lifted == true", never=[predicate]).verdicts["invariant"]
+
+    class Machine(RoarMachine):
+        request = "cell::lifted == true"
+        never = [predicate]
+    Machine.spec = spec
+
+    if verdict.status == "violated":
+        out = failure(Machine)
+        assert out.startswith(f"invariant violated: a reachable state satisfies never {predicate!r}: ")
+        assert "gripper::busy = true" in out
+    else:
+        assert verdict.status == "holds"
+        run_state_machine_as_test(Machine, settings=PASS)
+
+
+def test_never_names_no_event_in_a_machine(examples):
+    class Events(RoarMachine):
+        spec = load_spec(examples / "pick_fixed" / "pick.roar")
+        request = "cell::lifted == true"
+        never = ["primitive gripper::close_jaws starts"]
+
+    with pytest.raises(RoarError, match="names an event"):
+        Events()
