@@ -458,6 +458,7 @@ def swarm(job: Job, t0: float, explore, options: Options):
         explorer.shuffle(i)
         graph = explorer.run(Budget(max_states=job.swarm_states, max_seconds=remaining,
                                     max_memory_mb=job.budget.max_memory_mb))
+        stated_time(job, graph)
         verdicts = decide(graph)
         total += graph.n_states
         hashed_note(explorer, verdicts)
@@ -523,6 +524,13 @@ def bitstate_note(explorer, verdicts: dict) -> None:
             v.message += " [bitstate: a real path; replay the trace to confirm it]"
 
 
+def stated_time(job: Job, graph) -> None:
+    """A search stopped by the time bound is given what the job's bound left after loading and
+    compiling; its reason names the job's bound, the number the user wrote."""
+    if job.budget.max_seconds is not None and graph.stop_reason.startswith("time budget of "):
+        graph.stop_reason = f"time budget of {job.budget.max_seconds:g} s reached, loading and compiling included"
+
+
 def search_rounds(job: Job, t0: float, explorer, decide):
     limit = job.budget.max_states
     k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
@@ -533,6 +541,7 @@ def search_rounds(job: Job, t0: float, explorer, decide):
             remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
         graph = verdicts = None  # a restarting backend (ground) gives the last round's memory back first
         graph = explorer.run(Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb))
+        stated_time(job, graph)
         verdicts = decide(graph)
         if graph.complete or all(v.violated for v in verdicts.values()):
             return graph, verdicts

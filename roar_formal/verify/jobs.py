@@ -608,6 +608,10 @@ def load_job(path: str | Path) -> Job:
                 raise RoarError(f"'{key}' must be one of {', '.join(allowed)}, not '{v}'",
                                 Pos(str(path), _line_of(path, key), 1))
             setattr(job, key, v)
+    if job.backend == "ground" and "spec" in d:
+        raise RoarError("backend = \"ground\" runs plain CLF models (model = FILE.clf) that make no fresh names; "
+                        "a compiled spec makes them (its requests, activations and calls), so a spec job runs on "
+                        "the general backend: drop the line (or write \"auto\")", _value_pos(path, "backend"))
     if job.visited in ("hash", "bitstate") and job.backend == "ground":
         raise RoarError(f"visited = \"{job.visited}\" is a mode of the general backend (the ground backend keeps "
                         "its states compact and exact already): drop one of them",

@@ -506,6 +506,8 @@ MODEL = ROOT / "models" / "philosophers" / "dl.clf"
     (f'model = "{MODEL}"\nfunctional = "x.py"\n[expect]\ndeadlock = "holds"\n',
      "'functional' belongs to a job on a spec", 2),
     (f'model = "{MODEL}"\n[expect]\nsequential-achievement = "holds"\n', "reads ROAR events", 1),
+    (f'spec = "{SPEC}"\nrequest = "arm::started == true"\nbackend = "ground"\n',
+     'backend = "ground" runs plain CLF models', 3),   # (it was silently the general backend)
 ])
 def test_spec_job_file_errors_are_located(tmp_path, text, msg, line):
     job = _write(tmp_path, text)
@@ -624,3 +626,15 @@ def test_no_reachable_mask_entry_outlives_its_request(name):
         gone = {f.split()[1] for f in facts if f.startswith("rs ") and f.split()[2] in ("s_failure", "s_aborted")}
         held = {r for f in facts if f.startswith("mask ") for r in re.findall(r"\(vreq ([^ )]+)\)", f)}
         assert held <= live - gone, (sid, held - (live - gone))
+
+
+def test_a_time_bound_is_reported_as_the_job_wrote_it(tmp_path):
+    """The search gets what the bound leaves after compiling; the verdict names the bound the user
+    wrote (a check with --max-seconds 150 used to say 'time budget of 116.3 s')."""
+    from roar_formal.verify.check import run_job
+    job = _write(tmp_path, f'spec = "{ROOT / "models" / "spa_loop.roar"}"\n'
+                           f'request = "exec::arrived == true where exec::goal == 7"\n'
+                           f'[bounds]\nmax_seconds = 3\n')
+    res = run_job(load_job(job))
+    assert not res.graph.complete
+    assert "time budget of 3 s reached, loading and compiling included" in res.graph.stop_reason
