@@ -87,12 +87,12 @@ def _desugar_pattern(binder: str, pat, ty, body):
     return _desugar_pattern(binder, first, ty.left, inner)
 
 
-_UNESCAPE = {"\\": "\\", '"': '"', "n": "\n", "t": "\t"}
+_UNESCAPE = {"\\": "\\", '"': '"', "n": "\n", "r": "\r", "t": "\t"}
 _ESCAPE_RE = re.compile(r"\\(.)")
 
 
 def _unescape(tok: str) -> str:
-    """The value of a string literal token (the lexer admits only the four escapes)."""
+    """The value of a string literal token (the lexer admits only the five escapes)."""
     return _ESCAPE_RE.sub(lambda m: _UNESCAPE[m[1]], tok[1:-1])
 
 
@@ -276,7 +276,7 @@ _SCAN = re.compile(
     # a decimal literal (an extension): digits, '.', digits, not running into an identifier
     r"|(?P<dec>-?[0-9]+\.[0-9]+(?!" + _WORD_RE + r"))"
     r"|(?P<word>" + _WORD_RE + r"+)"
-    r'|(?P<str>"(?:[^"\\\n]|\\["\\nt])*")'
+    r'|(?P<str>"(?:[^"\\\n]|\\["\\nrt])*")'
     r"|(?P<raffi>@-)"
     r"|(?P<punct>[.:{}()\[\],\\!@])",
     re.S)
@@ -639,9 +639,9 @@ def _bad_string(rest: str) -> str:
             break
         if c == "\\":
             esc = line[i:i + 2]
-            if esc[1:] not in ('"', "\\", "n", "t"):
+            if esc[1:] not in ('"', "\\", "n", "r", "t"):
                 return (f"invalid escape '{esc}' in a string literal; the escapes are "
-                        "'\\\"', '\\\\', '\\n' and '\\t'")
+                        "'\\\"', '\\\\', '\\n', '\\r' and '\\t'")
             i += 2
             continue
         i += 1

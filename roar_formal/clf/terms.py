@@ -197,7 +197,10 @@ class Node:
     __slots__ = ("maxb", "evars", "metas", "maxp", "__weakref__")
 
 
-_roots: dict = {}
+#: the hash-consing tables of roots: a head alone -> its root without arguments (a constant, a
+#: fresh name); a head -> {arguments -> root} (no (head, arguments) pair made or kept per root)
+_atoms: dict = {}
+_by_head: dict = {}
 
 
 class Root(Node):
@@ -206,10 +209,16 @@ class Root(Node):
     __slots__ = ("head", "args")
 
     def __new__(cls, head: Head, args: tuple = ()) -> "Root":
-        key = (head, args)
-        r = _roots.get(key)
-        if r is not None:
-            return r
+        if args:
+            table = _by_head.get(head)
+            if table is not None:
+                r = table.get(args)
+                if r is not None:
+                    return r
+        else:
+            r = _atoms.get(head)
+            if r is not None:
+                return r
         r = object.__new__(cls)
         r.head = head
         r.args = args
@@ -231,7 +240,13 @@ class Root(Node):
         r.metas = me
         r.maxp = maxp
         if not ev:  # nodes with logic variables are short-lived: do not pin them
-            _roots[key] = r
+            if args:
+                table = _by_head.get(head)
+                if table is None:
+                    table = _by_head[head] = {}
+                table[args] = r
+            else:
+                _atoms[head] = r
         return r
 
     def __repr__(self) -> str:
@@ -455,12 +470,12 @@ def format_number(q: Fraction) -> str:
     return ("-" if n < 0 else "") + digits[:-k] + "." + digits[-k:]
 
 
-_ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\t": "\\t"}
+_ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\r": "\\r", "\t": "\\t"}
 
 
 def format_string(s: str) -> str:
-    """A string literal as written: quoted, with backslash, double quote, newline
-    and tab escaped (``\\\\``, ``\\"``, ``\\n``, ``\\t``)."""
+    """A string literal as written: quoted, with backslash, double quote, newline,
+    carriage return and tab escaped (``\\\\``, ``\\"``, ``\\n``, ``\\r``, ``\\t``)."""
     return '"' + "".join(_ESCAPES.get(c, c) for c in s) + '"'
 
 

@@ -192,6 +192,7 @@ class Check:
     ok: bool
     reason: str = ""
     rules: dict = field(default_factory=dict)
+    decl: Optional[str] = None   # the declaration it failed on, if one (a front end may name its source)
 
 
 def verify(sig, start: Context, perm: ConstPerm, labels: Optional[dict[str, int]] = None) -> Check:
@@ -241,7 +242,7 @@ def verify(sig, start: Context, perm: ConstPerm, labels: Optional[dict[str, int]
         for i in infos:
             if mine.get(image_of[i.name], 0) < got[image_of[i.name]]:
                 return Check(False, f"declaration '{i.name}' has no image: the permutation maps it onto "
-                                    f"nothing the model declares")
+                                    f"nothing the model declares", decl=i.name)
         return Check(False, "the permutation does not map the declarations onto themselves")
     # labels: equal exactly when their images' are
     for fam in labels:

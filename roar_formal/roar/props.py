@@ -329,7 +329,7 @@ class _Located(Exception):
 
 def did_you_mean(word: str, choices) -> str:
     m = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
-    return f"; did you mean '{m[0]}'?" if m else ""
+    return f" (did you mean '{m[0]}'?)" if m else ""
 
 
 def _expected_words(names: set) -> str:

@@ -755,7 +755,13 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
     pending = Const("pending")
     quiescent = False
     while True:
-        quiescent = runner.run(max_steps - runner.steps if max_steps else None)
+        # the bound counts every step of the run: the engine's and the functional layer's answers
+        # (the runner counts its own steps only, cumulatively)
+        left = max_steps - len(steps) if max_steps else None
+        if left is not None and left <= 0:
+            quiescent = False
+            break
+        quiescent = runner.run(runner.steps + left if left is not None else None)
         if not quiescent:
             break
         bag = ctx.index.get(pending)
@@ -764,7 +770,7 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             if schedule is not None and schedule.at_rest(ctx) and fire_due():
                 continue   # a comeback due later: nothing else can happen before it
             tick = next(iter(enabled_steps(tick_tpl, ctx, prog.prover())), None) if tick_tpl else None
-            if tick is not None and not (max_steps and runner.steps >= max_steps):
+            if tick is not None and not (max_steps and len(steps) >= max_steps):
                 _nxt, st = prog.successor(ctx, tick)   # the tick's instance, applied to the run's context
                 on_step(runner.external([f for _m, f in st.consumed], [f for _m, f in st.produced],
                                         rule=TICK_RULE), ctx)
@@ -772,6 +778,8 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             break
         # answer the oldest call first (all pending calls were made while the rest waited)
         for f in calls:
+            if max_steps and len(steps) >= max_steps:
+                break
             p = V.pending(f)
             fc, args, d = p.fn.head.name, list_items(p.args), p.dest
             result, how, writes = resolver.answer(fc, args)
@@ -789,7 +797,7 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             step = runner.external(eaten, made, rule="functional_layer")
             external[len(steps) + 1] = (f, ans)
             on_step(step, ctx)
-        if max_steps and runner.steps >= max_steps:
+        if max_steps and len(steps) >= max_steps:
             quiescent = False
             break
     unused = [f for f in resolver.faults if f not in resolver.used]

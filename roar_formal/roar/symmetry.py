@@ -200,6 +200,10 @@ def discover(model: CompiledModel, start: Context, limit: int = MAX_ORDER) -> Sy
             block_gens.append(ConstPerm(m, rules))
         if failed is not None:
             reason = failed.reason + (f" ({unsafe})" if unsafe and "label" in failed.reason else "")
+            if failed.decl:
+                source = spec_source(model, failed.decl)
+                if source:
+                    reason += f"; in the spec: {source}"
             out.rejected.append(f"{pair[0]} and {pair[1]} have identical specs, but exchanging them does not map "
                                 f"the model onto itself: {reason}")
             continue
@@ -209,6 +213,23 @@ def discover(model: CompiledModel, start: Context, limit: int = MAX_ORDER) -> Sy
         close_group(gens, limit)   # raises, with the message
     out.group = close_group(gens, limit)
     return out
+
+
+def spec_source(model: CompiledModel, decl: str) -> Optional[str]:
+    """What a compiled declaration comes from, in the spec's terms (None when it is the framework's
+    or the compiler's own): a statement's rule names its statement and position, a recipe's tables
+    the recipe."""
+    site = model.site_of_rule(decl)
+    if site is not None:
+        where = f" at {site.pos.line}:{site.pos.col}" if site.pos is not None else ""
+        return f"{site.agent}.{site.task}.{site.recipe}: '{site.text}'{where}"
+    for prefix, what in (("cdom_", "the constraints it sends, in the order it sends them"),
+                         ("body_", "its body, in order"), ("end_", "its end block, in order"),
+                         ("pre_", "its pre-conditions"), ("rinfo_", "its preference and counts")):
+        if decl.startswith(prefix) and decl[len(prefix):] in model.recipes:
+            agent, task, recipe = model.recipes[decl[len(prefix):]]
+            return f"recipe {agent}.{task}.{recipe}: {what}"
+    return None
 
 
 def names_permuted(sym: Symmetry, text: str) -> Optional[tuple[str, int]]:

@@ -41,7 +41,7 @@ from ..verify.jobs import SPEC_DEFAULTS as _SPEC_DEFAULTS
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..clf.program import Program
-    from ..verify.check import JobResult
+    from ..verify.results import JobResult
     from ..explore.properties import Verdict
     from ..roar import ast as a
     from ..roar.compile import CompiledModel
@@ -513,7 +513,7 @@ def _check_fault_names(faults: Sequence["Fault"], spec: "AgentSpec", model: "Com
         names = sorted({n for _o, n in pairs})
         what = f"its functions: {', '.join(names)}" if names else "it calls no function"
         raise RoarError(f"--fault {f}: no such call happened in this run: the spec has no function '{f.name}'"
-                        f"{did_you_mean(f.name, known)} ({what})")
+                        f"{did_you_mean(f.name, known)}; {what}")
 
 
 def _job_name(spec_name: str, request: str) -> str:
@@ -905,14 +905,14 @@ class Counterexample:
     @property
     def steps(self) -> list[dict]:
         """The steps as trace records (rule, consumed, produced, group, event, loop)."""
-        from ..verify.check import counterexample_steps
+        from ..verify.results import counterexample_steps
         r = self.exploration.result
         return counterexample_steps(r.graph, self.verdict, r)
 
     @property
     def events(self) -> Optional[list[list["RoarEvent"]]]:
         """For a spec, the ROAR events of each step (None for a .clf model)."""
-        from ..verify.check import roar_events
+        from ..verify.results import roar_events
         return roar_events(self.exploration.result, self.verdict)
 
     @property
@@ -922,7 +922,7 @@ class Counterexample:
 
     def save(self, folder: PathLike) -> Path:
         """Write the replayable trace (``roar-verify replay``) into ``folder``; its path is printed with it."""
-        from ..verify.check import save_counterexample
+        from ..verify.results import save_counterexample
         r = self.exploration.result
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
@@ -1063,7 +1063,7 @@ class Exploration:
 
     def as_json(self) -> dict:
         """The job as ``roar-verify check --json`` prints it (one element of its list)."""
-        from ..verify.check import counterexample_steps
+        from ..verify.results import counterexample_steps
         from ..verify.report import counterexample_report
         r = self.result
         out = {"job": r.job.name, "file": str(r.job.path),
@@ -1249,10 +1249,20 @@ class Replay:
         out = Lines()
         for note in self.notes:
             out.add(f"note: {note}", style="yellow")
-        for i in range(1, self.steps + 1):
-            out.extend(self.step_lines(i, verbose))
-            if states:
-                out.extend(self.state_lines(i))
+        if states or verbose:
+            for i in range(1, self.steps + 1):
+                out.extend(self.step_lines(i, verbose))
+                if states:
+                    out.extend(self.state_lines(i))
+        else:   # repeated blocks of steps folded, as the run's step table folds them
+            from ..trace.render import Repeat, folded
+            shown = [(i, lines) for i in range(1, self.steps + 1) for lines in [self.step_lines(i)] if lines.text()]
+            for item in folded(shown, key=lambda il: re.sub(r"(?m)^\s*\d+\.", "", il[1].text()),
+                               step=lambda il: il[0]):
+                if isinstance(item, Repeat):
+                    out.add((f"        {item.text('step')}", "dim"))
+                else:
+                    out.extend(item[1])
         if self.is_spec and not states:
             out.extend(self.state_lines(self.steps))
         return out.extend(self.replayed_lines())

@@ -71,12 +71,29 @@ def _class_pos(cls: type) -> Pos:
         return Pos(cls.__module__, 1, 1)
 
 
+def _written_pos(cls: type, text: str) -> Pos:
+    """Where a class's source writes the string ``text`` (its first character, inside the quotes),
+    so that an error in a ``never`` predicate points at its line and column; the class's line if
+    the source does not show it (a string built at run time)."""
+    import inspect
+    try:
+        lines, start = inspect.getsourcelines(cls)
+        file = inspect.getsourcefile(cls) or "<python>"
+    except (OSError, TypeError):
+        return _class_pos(cls)
+    for k, line in enumerate(lines):
+        col = line.find(text)
+        if col > 0 and line[col - 1] in "\"'":
+            return Pos(file, start + k, col + 1)
+    return _class_pos(cls)
+
+
 class _Setup:
     """What every run of one machine class shares: the compiled model, its start state, the checks."""
 
     def __init__(self, cls: type["RoarMachine"]):
         from ..clf.signature import ExecDirective
-        from ..verify.check import make_never
+        from ..verify.models import make_never
         from ..explore.system import Options
         from ..roar.explore import PROGRESS_RULES, RoarSystem, sequential_pairs
         spec = cls.spec
@@ -93,7 +110,11 @@ class _Setup:
         pairs = sequential_pairs(self.model) if cls.sequential_achievement else []
         self.system = RoarSystem(self.model, self.start, Options(progress_rules=PROGRESS_RULES, fairness="agent"),
                                  pairs)
-        clf_never, spec_never = split_never(list(cls.never), _class_pos(cls))
+        clf_never, spec_never = [], []
+        for pattern in cls.never:   # (each located where the class writes it)
+            c, f = split_never([pattern], _written_pos(cls, pattern) if isinstance(pattern, str) else _class_pos(cls))
+            clf_never += c
+            spec_never += f
         self.never = make_never(self.model.program().sig, str(spec.path or spec.name), clf_never) \
             if clf_never else None
         #: predicates in the spec's terms, read on each state (as a job's [invariant] never)

@@ -74,18 +74,21 @@ class Repeat:
     first: int
     last: int
 
-    def text(self) -> str:
-        what = "the event above" if self.period == 1 else f"the {self.period} events above"
+    def text(self, unit: str = "event") -> str:
+        what = f"the {unit} above" if self.period == 1 else f"the {self.period} {unit}s above"
         return (f"... {what} {'repeats' if self.period == 1 else 'repeat'} {self.times} more time"
                 f"{'s' if self.times > 1 else ''} (steps {self.first} to {self.last}; --verbose shows them)")
 
 
-def folded(rows: Sequence[Row]) -> list:
+def folded(rows: Sequence, key=None, step=None) -> list:
     """The rows with each run of at least :data:`MIN_REPEATS` consecutive occurrences of a block
     of events (the same agents, kinds and texts, at other steps) kept once, followed by a
     :class:`Repeat`: a recipe retried for ever reads as one attempt and a count. The block
-    folded at a row is the one that covers the most rows (the shortest of those)."""
-    keys = [(r.kind, r.agent, r.text) for r in rows]
+    folded at a row is the one that covers the most rows (the shortest of those). Other items
+    than :class:`Row` are folded by ``key`` (what must repeat) and ``step`` (their step)."""
+    key = key or (lambda r: (r.kind, r.agent, r.text))
+    step = step or (lambda r: r.step)
+    keys = [key(r) for r in rows]
     out: list = []
     i, n = 0, len(rows)
     while i < n:
@@ -104,7 +107,7 @@ def folded(rows: Sequence[Row]) -> list:
             continue
         _covered, p, k = best
         out.extend(rows[i:i + p])
-        out.append(Repeat(p, k - 1, rows[i + p].step, rows[i + k * p - 1].step))
+        out.append(Repeat(p, k - 1, step(rows[i + p]), step(rows[i + k * p - 1])))
         i += k * p
     return out
 

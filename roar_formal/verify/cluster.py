@@ -16,35 +16,16 @@ import hashlib
 import json
 import logging
 import pickle
-import re
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Optional
 
-from ..errors import Pos, RoarError
+from ..errors import RoarError
+from .jobs import ADDRESS, ClusterSetup, PropertySpec
+from .models import load_model, roar_setup
+from .searching import hashed_note, search_rounds, swarm
 
 __all__ = ["ClusterSetup", "JobSystem", "make_explorer", "on_cluster", "cluster_note", "ADDRESS"]
-
-#: a scheduler address: scheme://host:port
-ADDRESS = re.compile(r"(tcp|tls|ws|wss|ucx|inproc)://[^\s/:]+(:\d{1,5})?")
-#: the most local worker processes a job may ask for
-MAX_WORKERS = 256
-
-
-@dataclass
-class ClusterSetup:
-    """A job's [cluster] table."""
-
-    workers: int = 2                    # a local cluster of this many worker processes
-    address: Optional[str] = None       # or a running cluster's scheduler
-    batch: int = 1_000                  # frontier states each worker expands per exchange
-    connect_seconds: float = 30.0       # how long to wait for the scheduler and its first worker
-    pos: Optional[Pos] = None           # where the table (or the search key) is, for errors at run time
-    address_pos: Optional[Pos] = None
-
-    def describe(self, n: int) -> str:
-        return f"{n} worker{'s' if n != 1 else ''}" + (f" at {self.address}" if self.address else "")
-
 
 _ACTIVE: contextvars.ContextVar = contextvars.ContextVar("roar_cluster_session", default=None)
 
@@ -68,7 +49,6 @@ class JobSystem:
 
     def __init__(self, job, fingerprint: Optional[dict]):
         from dataclasses import replace
-        from .jobs import PropertySpec
         # what building the system reads (check.load_model, check.roar_setup); the properties in
         # the spec's terms are bound to the driver's compiled model, and stay there
         p = job.props
@@ -87,7 +67,6 @@ class JobSystem:
         """The job's system, built as the driver builds it (verify/check.py)."""
         from ..explore.distributed import DistributedError
         from ..explore.system import ClfSystem, Options
-        from .check import load_model, roar_setup
         job = self.job
         if job.is_roar:
             from ..roar.compile import compile_spec
@@ -178,7 +157,6 @@ def on_cluster(job, t0: float, explore, options):
     names on it (breadth-first, distributed; or a swarm's members as tasks), free the cluster.
     The graph, states and steps the verdicts read are on this machine when it returns."""
     from ..explore.distributed import DistributedError
-    from .check import hashed_note, search_rounds, swarm
     setup = job.cluster
     fingerprint = job_fingerprint(job)
     with open_cluster(setup) as client:

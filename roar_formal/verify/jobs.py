@@ -773,11 +773,32 @@ def _bitstate_refusals(job: Job, path: Path) -> None:
             raise RoarError(f"visited = \"bitstate\" is not available with {why}", where)
 
 
+#: a scheduler address: scheme://host:port
+ADDRESS = re.compile(r"(tcp|tls|ws|wss|ucx|inproc)://[^\s/:]+(:\d{1,5})?")
+#: the most local worker processes a job may ask for
+MAX_WORKERS = 256
+
+
+@dataclass
+class ClusterSetup:
+    """A job's [cluster] table."""
+
+    workers: int = 2                    # a local cluster of this many worker processes
+    address: Optional[str] = None       # or a running cluster's scheduler
+    batch: int = 1_000                  # frontier states each worker expands per exchange
+    connect_seconds: float = 30.0       # how long to wait for the scheduler and its first worker
+    pos: Optional[Pos] = None           # where the table (or the search key) is, for errors at run time
+    address_pos: Optional[Pos] = None
+
+    def describe(self, n: int) -> str:
+        return f"{n} worker{'s' if n != 1 else ''}" + (f" at {self.address}" if self.address else "")
+
+
+
 def _cluster_setup(d: dict, path: Path, job: Job):
     """The [cluster] table (docs/checking.md, "Running on a cluster"): ``workers = N`` (a local
     cluster of N processes, default 2) or ``address = "tcp://host:port"`` (a running scheduler),
     and ``batch`` (frontier states each worker expands per exchange)."""
-    from .cluster import ADDRESS, MAX_WORKERS, ClusterSetup
     where = Pos(str(path), _line_of(path, "cluster" if "cluster" in d else "search"), 1)
     setup = ClusterSetup(pos=where)
     if "cluster" not in d:

@@ -16,7 +16,7 @@ from typing import Optional
 from ..lines import Lines
 from ..roar.report import decode_state
 from ..trace.render import KIND_STYLE
-from .check import counterexample_steps
+from .results import counterexample_steps
 
 __all__ = ["counterexample_report", "counterexample_lines", "replay_step_lines", "replay_state_lines",
            "replay_report", "run_report"]

@@ -20,7 +20,10 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 from ..errors import Pos, RoarError
-from .check import JobResult, search_rounds, make_never, mark_defaults, roar_setup, spec_properties
+from .models import make_never, mark_defaults, roar_setup, spec_properties
+from .results import JobResult, counterexample_steps
+from .roar_jobs import run_roar_job
+from .searching import search_rounds
 from .jobs import Job
 from ..explore.properties import Verdict, check_deadlock, check_livelock, check_states
 from ..explore.search import Explorer, rss_mb
@@ -75,7 +78,6 @@ class RobotRun:
         """The counterexample of ``prop`` driven on a straight robot, drawn as its trajectory
         (the pan angle for a pan unit) with the failing point marked: where a robot invariant
         broke, else where the path ends or the cycle repeats."""
-        from .check import counterexample_steps
         from ..robot.onrobot import replay_robot_path
         from ..robot.report import draw_robot
         v = res.verdicts[prop]
@@ -259,7 +261,6 @@ def _robot_bad(node) -> Optional[str]:
 
 def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
     """The abstract model's verdicts next to the robot's, and why they differ."""
-    from .check import run_roar_job
     from ..clf.query import with_big_stack
     ajob = copy.copy(job)
     ajob.robot = None

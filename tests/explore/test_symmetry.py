@@ -177,6 +177,7 @@ def test_roar_identical_agents_that_act_are_told_apart_by_their_sender():
     sym = with_big_stack(lambda: discover(model, start))
     assert sym.order == 1 and sym.blocks == []
     assert "w1 and w2 have identical specs" in sym.rejected[0] and "has no image" in sym.rejected[0]
+    assert "; in the spec: recipe planner." in sym.rejected[0]   # what the compiled name stands for
     assert sym.note().startswith("symmetry: none found")
 
 

@@ -381,6 +381,14 @@ def test_any_string_of_the_spec_language_survives_compilation(tmp_path_factory, 
     res = run_model(model, seed=0)
     assert res.outcome == "success"
     assert res.final["a::msg"] == text
+    # and the printed model (`roar-verify compile`) reads back as the model: a carriage return once
+    # printed raw, which reading the file turned into a line break
+    from roar_formal.clf.build import Comment
+    from roar_formal.clf.parser import parse_file
+    printed = path.with_suffix(".clf")
+    printed.write_text(model.spec_text, encoding="utf-8")
+    assert [_plain(x) for x in parse_file(printed).items] == \
+        [_plain(x) for x in model.items if not isinstance(x, Comment)]
 
 
 @pytest.mark.parametrize("spec,request_", [

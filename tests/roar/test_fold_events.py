@@ -60,3 +60,20 @@ def test_run_prints_a_failing_retry_once_with_its_count(capsys):
     calls = full.count("grip() = false")
     assert calls > 10 and short.count("grip() = false") == 1
     assert f"the 6 events above repeat {calls - 1} more times" in short
+
+
+def test_replay_folds_the_same_repeats(capsys, tmp_path):
+    spec = str(ROOT / "models" / "faulty" / "retry_forever.roar")
+    trace = tmp_path / "rf.jsonl"
+
+    def cli(*argv) -> str:
+        try:
+            main(list(argv))
+        except SystemExit:
+            pass
+        return capsys.readouterr().out
+    cli("run", spec, "-r", "hand::holding == true", "--max-steps", "300", "--fault", "grip", "--trace", str(trace))
+    short = cli("replay", str(trace), "--model", spec)
+    full = cli("replay", str(trace), "--model", spec, "--verbose")
+    assert "steps above repeat" in short and "replayed 300 steps" in short
+    assert short.count("grip() = false") == 1 and full.count("grip() = false") > 10

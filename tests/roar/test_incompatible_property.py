@@ -195,8 +195,8 @@ def test_nothing_to_check_is_an_error(tmp_path, roar_cli):
 
 
 @pytest.mark.parametrize("pairs, col, message", [
-    ([["grippr::grasp", "gripper::release"]], 12, "unknown agent 'grippr'; did you mean 'gripper'?; the agents are: boss, gripper"),
-    ([["gripper::grasp", "gripper::relase"]], 30, "agent 'gripper' has no task 'relase'; did you mean 'release'?; its tasks: grasp, release"),
+    ([["grippr::grasp", "gripper::release"]], 12, "unknown agent 'grippr' (did you mean 'gripper'?); the agents are: boss, gripper"),
+    ([["gripper::grasp", "gripper::relase"]], 30, "agent 'gripper' has no task 'relase' (did you mean 'release'?); its tasks: grasp, release"),
     ([["gripper::grasp", "boss::run"]], 30, "'gripper::grasp' and 'boss::run' belong to two agents"),
     ([["gripper::grasp", "gripper::grasp"]], 12, "'gripper::grasp' is paired with itself"),
 ])

@@ -394,3 +394,17 @@ def test_a_request_no_task_can_handle_says_so(capsys):
     code, out, err = run_cli(capsys, (MODELS / "faulty" / "aim.roar", "arm::pos == 5"))
     assert code == 1, err
     assert "  error context: empty: no task of the target agent can handle it (nothing was tried)" in out.splitlines()
+
+
+@pytest.mark.parametrize("bound", [30, 61, 300])
+def test_the_step_bound_is_the_number_of_steps_the_run_takes(capsys, bound):
+    """--max-steps N stops a run that does not end after exactly N steps, the functional layer's
+    answers among them (it stopped at about 0.57 N: the bound was given to the engine as steps
+    left, which the engine reads as its own steps in all)."""
+    spec = str(MODELS / "faulty" / "retry_forever.roar")
+    code, out, err = cli(capsys, "run", spec, "--request", "hand::holding == true", "--fault", "grip",
+                         "--max-steps", str(bound), "--json")
+    assert code == 1, err
+    got = json.loads(out)
+    assert got["clf_steps"] == bound and not got["quiescent"]
+    assert max(e["step"] for e in got["events"]) <= bound

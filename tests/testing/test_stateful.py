@@ -104,7 +104,7 @@ def test_helpers_read_the_state_and_mistakes_are_reported(examples):
     with pytest.raises(RoarError, match="granularity must be 'event' or 'step'"):
         Odd()
 
-    line = inspect.currentframe().f_lineno + 2   # a bad pattern is reported where the class is written
+    line = inspect.currentframe().f_lineno + 3   # a bad pattern is reported where the class writes it
 
     class BadPattern(Reader):
         never = ["nosuch X"]
@@ -144,3 +144,18 @@ def test_never_names_no_event_in_a_machine(examples):
 
     with pytest.raises(RoarError, match="names an event"):
         Events()
+
+
+def test_a_mistake_in_a_never_predicate_is_located_where_it_is_written(examples):
+    class Typo(RoarMachine):
+        spec = load_spec(examples / "pick_fixed" / "pick.roar")
+        request = "cell::lifted == true"
+        never = ["gripper::busy == true && gripper::holdin == true"]
+
+    line = inspect.currentframe().f_lineno - 2
+    with pytest.raises(RoarError) as e:
+        Typo()
+    text = 'never = ["gripper::busy == true && gripper::holdin == true"]'
+    col = text.index("gripper::holdin") + 1 + len('        ')
+    assert "has no variable 'holdin' (did you mean 'holding'?)" in e.value.message
+    assert (e.value.pos.file, e.value.pos.line, e.value.pos.col) == (__file__, line, col)

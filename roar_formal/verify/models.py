@@ -1,0 +1,139 @@
+"""What a job explores: the model it names, loaded or compiled, its start state, and the
+properties made into code (accepted final states, invariant patterns, spec-level checks)."""
+
+from __future__ import annotations
+
+from typing import Callable, Optional, Union
+
+from ..clf.backward import Backward
+from ..clf.context import Context
+from ..clf.parser import parse_expr
+from ..clf.forward import enabled_steps
+from ..clf.program import Program
+from ..clf.signature import Elaborator, ExecDirective, Signature, extend_signature
+from ..errors import RoarError
+from .jobs import Job
+from ..explore.system import Options
+
+
+def load_model(job: Job) -> tuple[Program, Context]:
+    program = Program.from_file(job.model)
+    execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
+    if not execs:
+        raise RoarError(f"{job.model} has no #exec directive to start the search from", None)
+    if job.start > len(execs):
+        raise RoarError(f"{job.path}: 'start = {job.start}' but {job.model.name} has only {len(execs)} #exec "
+                        "directive(s)")
+    return program, program.start_context(execs[job.start - 1].start)
+
+
+def make_accept(program: Program, text: str, where: str) -> Callable[[Context], bool]:
+    """A final-state test from a positive CLF type: the context must match it exactly
+    (every linear fact accounted for; affine ones may be left over)."""
+    expr = parse_expr(text, file=where)
+    el = Elaborator(program.sig)
+    el._begin()
+    s = el.pos(expr)
+    el._solve_postponed(expr.pos)
+    for x in el.evars:
+        x.scope = 1 << 62  # pattern variables may stand for fresh names
+
+    def accept(ctx: Context) -> bool:
+        bw = Backward(program)
+        return any(True for _ in bw._match_pos(s, ctx))
+
+    return accept
+
+
+def _split_tensor(text: str) -> list[str]:
+    """``A * B * C`` at parenthesis depth 0 -> [A, B, C]."""
+    parts, depth, cur = [], 0, ""
+    for ch in text:
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+        if ch == "*" and depth == 0:
+            parts.append(cur.strip())
+            cur = ""
+        else:
+            cur += ch
+    parts.append(cur.strip())
+    return [p for p in parts if p]
+
+
+def make_never(program: Union[str, Signature], file: str, patterns: list) -> Callable[[Context], Optional[str]]:
+    """Invariant patterns as rules that must never be enabled: pattern ``A * B`` is violated by
+    a state exactly when ``A -o B -o {1}`` could fire there (a sub-multiset match, with
+    upper-case names as pattern variables and ``!A`` for persistent facts). ``program`` is the
+    program's text, or its elaborated signature (a compiled model's: extended, not re-read)."""
+    rules = []
+    for k, (pat, pos) in enumerate(patterns):
+        parts = _split_tensor(pat)
+        rules.append(f"never_{k} : " + " -o ".join(parts) + " -o {1}.")
+    extra = "\n".join(rules) + "\n"
+    try:
+        prog = Program.from_text(program + "\n" + extra, file) if isinstance(program, str) else \
+            Program(extend_signature(program, extra, file))
+    except RoarError as exc:
+        # the error is in a pattern: point at the property file
+        k = next((i for i, r in enumerate(rules) if r.split(" :")[0] in exc.message), None)
+        pat, pos = patterns[k] if k is not None else patterns[0]
+        raise RoarError(f"invariant pattern {pat!r}: {exc.message}", pos) from None
+    tpls = [t for t in prog.templates if t.name.startswith("never_")]
+    prover = prog.prover()
+
+    def bad(ctx: Context) -> Optional[str]:
+        for t in tpls:
+            if any(True for _ in enabled_steps([t], ctx, prover, first_only=True)):
+                return f"a reachable state matches the forbidden pattern {patterns[int(t.name[6:])][0]!r}"
+        return None
+
+    bad.templates = tuple(tpls)  # the reduction keeps these rules in every stubborn set
+    return bad
+
+
+def spec_properties(job: Job, model):
+    """The job's properties in the spec's terms, bound to its compiled model (roar/props.py)."""
+    from ..roar.props import SpecChecks
+    return SpecChecks(job.props, model)
+
+
+def mark_defaults(props, verdicts: dict) -> None:
+    """Say which properties a job checked by default (a job on a spec that names none)."""
+    if getattr(props, "defaulted", False):
+        for v in verdicts.values():
+            if "(a default property)" not in v.message:
+                v.message += " (a default property)"
+
+
+def roar_setup(job: Job, model) -> tuple:
+    """(program, start context, options, sequential pairs) of a job on a compiled spec: weak
+    fairness per agent, the property files' progress rules (or requests reaching a final state)."""
+    from ..roar.explore import PROGRESS_RULES, job_sequence_pairs
+    program = model.program()
+    start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
+    start = program.start_context(start_d.start)
+    props = job.props
+    options = Options(progress_rules=tuple(props.progress) or PROGRESS_RULES, fairness="agent",
+                      canonical=job.canonical)
+    pairs = []
+    if "sequential-achievement" in props.check:
+        pairs = job_sequence_pairs(model, props.sequence_recipes, props.sequence_kept, str(job.path))
+    return program, start, options, pairs
+
+
+def reduction_options(options: Options, props, never) -> None:
+    """Partial-order reduction for every property the job checks (see reduction.py): an
+    invariant's forbidden patterns stay in every stubborn set, the families a monitor or a
+    Python-computed invariant reads make their rules visible, progress steps are visible."""
+    from ..clf.terms import Const
+    from ..roar.explore import EXCLUSIVE_WRITES_FAMILIES, MONITOR_FAMILIES
+    options.reduction = True
+    options.observers = tuple(never.templates) if never is not None else ()
+    visible: set = set()
+    if "sequential-achievement" in props.check:
+        visible |= MONITOR_FAMILIES
+    if "exclusive-writes" in props.check:
+        visible |= EXCLUSIVE_WRITES_FAMILIES
+    options.visible_families = frozenset(Const(f) for f in visible)

@@ -1,0 +1,137 @@
+"""How a job searches: budget rounds, the swarm, and the notes its visited-set mode adds to
+the verdicts. Below the cluster (which runs these searches on its workers) and the runners."""
+
+from __future__ import annotations
+
+import time
+
+from .jobs import Job
+from ..explore.properties import Verdict
+from ..explore.search import Budget
+from ..explore.system import Options
+
+
+FIRST_ROUND = 20_000
+
+
+def explorer_order(job: Job) -> str:
+    """The explorer's order for the job's search (a swarm's members search depth first)."""
+    return "dfs" if job.search == "swarm" else "bfs" if job.search == "distributed" else job.search
+
+
+#: what a job's visited-set mode adds to its backend's name
+VISITED_NOTE = {"exact": "", "hash": ", hash compaction", "bitstate": ", bitstate"}
+
+
+def hashed_note(explorer, verdicts: dict) -> None:
+    """Under hash compaction, say what each verdict is worth: a "holds" is a bug-hunting result
+    with a bound on the probability that a state was missed, never a proof; a counterexample is
+    real once replay confirms it (a collision could join two paths that are not one). Under
+    bitstate hashing the same, with the probability that a new state was taken for a visited one."""
+    if getattr(explorer, "bitstate", None) is not None:
+        bitstate_note(explorer, verdicts)
+        return
+    if not getattr(explorer, "hashed", False):
+        return
+    p = explorer.omission_probability()
+    for v in verdicts.values():
+        v.details["visited"] = "hash"
+        v.details["omission_probability"] = p
+        if v.status == "holds":
+            v.message += (f" [hash compaction: not verified; the probability that a state was missed is at "
+                          f"most {p:.1e}]")
+        elif v.status == "violated":
+            v.message += " [hash compaction: replay the trace to confirm it]"
+
+
+def bitstate_note(explorer, verdicts: dict) -> None:
+    g = explorer.graph
+    p, lost = explorer.omission_probability(), explorer.expected_omissions()
+    what = (f"{g.n_states:,} states in {explorer.bits:,} bits, 3 bits each: at the end a new state was taken "
+            f"for a visited one with probability {p:.1e}; about {lost:,.1f} states were so taken, and their "
+            f"successors may be missed too")
+    for v in verdicts.values():
+        v.details.update(visited="bitstate", omission_probability=p, expected_omissions=lost, bits=explorer.bits,
+                         unrecorded_transitions=g.n_unrecorded)
+        if v.status == "holds":
+            v.message += f" [bitstate: not verified; {what}]"
+        elif v.status == "violated":
+            v.message += " [bitstate: a real path; replay the trace to confirm it]"
+
+
+def stated_time(job: Job, graph) -> None:
+    """A search stopped by the time bound is given what the job's bound left after loading and
+    compiling; its reason names the job's bound, the number the user wrote."""
+    if job.budget.max_seconds is not None and graph.stop_reason.startswith("time budget of "):
+        graph.stop_reason = f"time budget of {job.budget.max_seconds:g} s reached, loading and compiling included"
+
+
+def search_rounds(job: Job, t0: float, explorer, decide):
+    limit = job.budget.max_states
+    k = FIRST_ROUND if limit is None else min(FIRST_ROUND, limit)
+    graph = verdicts = None
+    while True:
+        remaining = None
+        if job.budget.max_seconds is not None:
+            remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
+        graph = verdicts = None  # a restarting backend (ground) gives the last round's memory back first
+        graph = explorer.run(Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb))
+        stated_time(job, graph)
+        verdicts = decide(graph)
+        if graph.complete or all(v.violated for v in verdicts.values()):
+            return graph, verdicts
+        if "state budget" not in graph.stop_reason or (limit is not None and k >= limit):
+            return graph, verdicts
+        grow = getattr(explorer, "GROWTH", 4)
+        k = k * grow if limit is None else min(k * grow, limit)
+
+
+def swarm(job: Job, t0: float, explore, options: Options):
+    """Search = "swarm": up to ``job.swarm_runs`` depth-first searches, each taking successors in
+    its own random order and visiting at most ``job.swarm_states`` states, until one finds a
+    violation (its counterexample is real but not the shortest) or covers the whole state space
+    (then the verdicts are those of a complete search). Otherwise no verdict is "holds": the
+    properties not found violated are "incomplete", with what the swarm covered."""
+    total = 0
+    last = None
+    for i in range(job.swarm_runs):
+        remaining = None
+        if job.budget.max_seconds is not None:
+            remaining = job.budget.max_seconds - (time.perf_counter() - t0)
+            if remaining <= 0 and last is not None:
+                break
+        explorer, decide = explore(options)
+        explorer.shuffle(i)
+        graph = explorer.run(Budget(max_states=job.swarm_states, max_seconds=remaining,
+                                    max_memory_mb=job.budget.max_memory_mb))
+        stated_time(job, graph)
+        verdicts = decide(graph)
+        total += graph.n_states
+        hashed_note(explorer, verdicts)
+        last = (explorer, graph, verdicts, i + 1)
+        if graph.complete:
+            for v in verdicts.values():
+                v.message += f" [swarm: search {i + 1} covered the whole state space]"
+            return explorer, graph, verdicts
+        if any(v.violated for v in verdicts.values()):
+            for v in verdicts.values():
+                if v.violated:
+                    v.message += (f" [swarm: found by randomized depth-first search {i + 1} of {job.swarm_runs}; "
+                                  f"a real counterexample, not the shortest]")
+            break
+    explorer, graph, verdicts, done = last
+    for p, v in verdicts.items():
+        if not v.violated:
+            verdicts[p] = Verdict(p, "incomplete",
+                                  f"no violation found by {done} randomized depth-first search"
+                                  f"{'es' if done != 1 else ''} ({total:,} states visited in all, at most "
+                                  f"{job.swarm_states:,} each): a bug-hunting result, not verified",
+                                  v.counterexample, {**v.details, "swarm_runs": done, "swarm_states": total})
+    return explorer, graph, verdicts
+
+
+def mark_reduction(job: Job, verdicts: dict, reduction: str) -> None:
+    if job.reduction:
+        for v in verdicts.values():
+            v.message += " (partial-order reduction)" if reduction == "on" else f" (reduction {reduction})"
+            v.details.setdefault("reduction", reduction)
