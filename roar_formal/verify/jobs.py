@@ -661,6 +661,14 @@ def load_job(path: str | Path) -> Job:
             max_memory_mb=_bound(b, "max_memory_mb", path, f"a whole number of MiB, at least {MIN_MEMORY_MB}",
                                  MIN_MEMORY_MB, integer=True),
         )
+    from_expect: dict[str, Pos] = {}   # properties only [expect] names -> its line (errors point there)
+
+    def at(prop: str, what: str) -> tuple[str, Pos]:
+        """An error about ``prop``: at the [expect] line that alone asks for it, else the job's start."""
+        if prop in from_expect:
+            return (f"[expect] {prop}: the job's properties do not check it, and [expect] adds it; {what}",
+                    from_expect[prop])
+        return what, Pos(str(path), 1, 1)
     if "expect" in d:
         e = _typed(d, "expect", dict, path, "a job file")
         _expect_keys(e, set(PROPERTIES) | set(job.props.temporal), "[expect]", path)
@@ -671,6 +679,7 @@ def load_job(path: str | Path) -> Job:
             job.expect[k] = v
             if k not in job.props.check:
                 job.props.check.append(k)
+                from_expect[k] = Pos(str(path), _line_of(path, k), 1)
     if job.is_roar and not job.props.check:   # nothing names a property: the defaults of a spec
         job.props.check = list(SPEC_DEFAULTS)
         job.props.defaulted = True
@@ -683,18 +692,17 @@ def load_job(path: str | Path) -> Job:
     if not job.is_roar:
         for p in job.props.check:
             if p in ROAR_PROPERTIES:
-                raise RoarError(f"property '{p}' reads ROAR events: it needs a job on a spec ('spec = ...')",
-                                Pos(str(path), 1, 1))
+                raise RoarError(*at(p, f"property '{p}' reads ROAR events: it needs a job on a spec ('spec = ...')"))
     if "robot-invariant" in job.props.check and job.robot is None:
-        raise RoarError("property 'robot-invariant' reads the robot's state: it needs a robot-backed job "
-                        "('robot = \"scenario.toml\"')", Pos(str(path), 1, 1))
+        raise RoarError(*at("robot-invariant", "property 'robot-invariant' reads the robot's state: it needs a "
+                                               "robot-backed job ('robot = \"scenario.toml\"')"))
     if "robot-invariant" in job.props.check and not (job.props.robot_never or job.props.robot_always):
-        raise RoarError("property 'robot-invariant' needs conditions: [robot-invariant] never = [\"...\"] or "
-                        "always = [\"...\"] in a property file", Pos(str(path), 1, 1))
+        raise RoarError(*at("robot-invariant", "property 'robot-invariant' needs conditions: [robot-invariant] "
+                                               "never = [\"...\"] or always = [\"...\"] in a property file"))
     if "invariant" in job.props.check and not (job.props.never or job.props.spec_never or job.props.spec_always):
-        raise RoarError("property 'invariant' needs patterns: [invariant] never = [\"...\"] in a property file "
-                        "(on a spec, predicates in the spec's terms: never = [\"...\"] or always = [\"...\"])",
-                        Pos(str(path), 1, 1))
+        raise RoarError(*at("invariant", "property 'invariant' needs patterns: [invariant] never = [\"...\"] in a "
+                                         "property file (on a spec, predicates in the spec's terms: never = "
+                                         "[\"...\"] or always = [\"...\"])"))
     if not job.props.check:
         raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
                         Pos(str(path), 1, 1))

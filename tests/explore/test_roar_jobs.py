@@ -505,9 +505,12 @@ MODEL = ROOT / "models" / "philosophers" / "dl.clf"
      "'request' belongs to a job on a spec", 3),
     (f'model = "{MODEL}"\nfunctional = "x.py"\n[expect]\ndeadlock = "holds"\n',
      "'functional' belongs to a job on a spec", 2),
-    (f'model = "{MODEL}"\n[expect]\nsequential-achievement = "holds"\n', "reads ROAR events", 1),
+    (f'model = "{MODEL}"\n[expect]\nsequential-achievement = "holds"\n', "reads ROAR events", 3),
     (f'spec = "{SPEC}"\nrequest = "arm::started == true"\nbackend = "ground"\n',
      'backend = "ground" runs plain CLF models', 3),   # (it was silently the general backend)
+    (f'spec = "{SPEC}"\nrequest = "arm::started == true"\n[expect]\ndeadlock = "violated"\ninvariant = "holds"\n',
+     "[expect] invariant: the job's properties do not check it, and [expect] adds it; property 'invariant' needs "
+     "patterns", 5),   # (it was at 1:1)
 ])
 def test_spec_job_file_errors_are_located(tmp_path, text, msg, line):
     job = _write(tmp_path, text)
