@@ -151,7 +151,8 @@ def register(app: typer.Typer) -> None:
 
     @app.command("replay")
     def replay_cmd(
-        trace: Path = typer.Argument(..., help="A trace written by 'roar-verify check' (JSON Lines)."),
+        trace: Path = typer.Argument(..., help="A trace (JSON Lines) written by 'roar-verify check' (a "
+                                               "counterexample), 'run --trace' or 'simulate --trace'."),
         model: Optional[Path] = typer.Option(
             None, "--model",
             help="The model to replay on: the ROAR spec of a job on a spec or of a robot trace (its "

@@ -1477,12 +1477,16 @@ class _Compiler:
         self.guard_crashed()
         # the statement rules: site ppN_kind has rules stN_kind[_false|_wake|...]
         by_num = self.sites_by_number()
+        shown = None
         for r in self.rules:
             site = by_num.get(r.name.split("_", 1)[0]) if r.name.startswith("pp") else None
             if site is not None:
                 r.name = "st" + r.name[2:]
                 m.rule_sites[r.name] = site
                 r.pos = m.sites[site].pos
+                if site != shown:   # (for people reading the printed model: where the rules come from)
+                    o.append(Comment(self.site_comment(m.sites[site])))
+                shown = site
             o.append(r.item())
         # functions and outcomes
         if self.functional == "abstract":
@@ -1505,6 +1509,12 @@ class _Compiler:
         m._program = Program(extend_signature(sig, [x for x in rest if not isinstance(x, Comment)],
                                               "<compiled model>"))
         return m
+
+    @staticmethod
+    def site_comment(site: Site) -> str:
+        where = ".".join(x for x in (site.agent, site.task, site.recipe) if x)
+        at = f" (line {site.pos.line}, column {site.pos.col})" if site.pos is not None else ""
+        return f"st{site.const[2:]} (site {site.const}): {where}: {site.text}{at}".replace("\n", " ")
 
     def declare_names(self) -> None:
         """One constant per agent, variable (a cell), task (with its identity number) and recipe."""
