@@ -133,3 +133,36 @@ def test_the_front_ends_meet_the_explorer_through_its_protocol():
     assert set(wanted) == {"initial", "key", "successors", "reduced_successors", "describe", "describe_step"}
     for cls in (ClfSystem, RoarSystem, RobotSystem):
         assert [n for n in wanted if not callable(getattr(cls, n, None))] == [], cls.__name__
+
+
+def _module_graph():
+    """Module -> the package's modules it imports (at the top or in a function), by dotted name."""
+    import networkx as nx
+    modules = {}
+    for f in ROOT.rglob("*.py"):
+        name = ".".join(("roar_formal", *f.relative_to(ROOT).with_suffix("").parts))
+        modules[name.removesuffix(".__init__")] = f
+    g = nx.DiGraph()
+    for f, _line, _unit, target, names in IMPORTS:
+        src = ".".join(("roar_formal", *f.relative_to(ROOT).with_suffix("").parts)).removesuffix(".__init__")
+        for dest in [target, *(f"{target}.{n}" for n in names)]:
+            if dest in modules and dest != src and not modules[dest].name == "__init__.py":
+                g.add_edge(src, dest)
+    return g
+
+
+def test_no_module_imports_one_that_imports_it_back():
+    """Within a package too, imports point one way: an import hidden in a function does not make a
+    cycle of modules acceptable (the verify runners and the engine's matcher had some)."""
+    import networkx as nx
+    g = _module_graph()
+    assert g.number_of_edges() > 300
+    cycles = sorted(nx.simple_cycles(g), key=len)
+    assert not cycles, "\n".join(" -> ".join(c + [c[0]]) for c in cycles[:10])
+
+
+def test_the_cycle_check_sees_a_cycle():
+    import networkx as nx
+    g = _module_graph()
+    g.add_edge("roar_formal.clf.terms", "roar_formal.clf.printer")   # the import terms.py used to make
+    assert list(nx.simple_cycles(g))

@@ -58,6 +58,11 @@ class Backward:
         self.proofs = False  # build monadic proof terms (names for every fact in the monad)
         self._names = 0
 
+    def prove_consuming(self, ctx: Context, goal: Node, mode: str, consumed=()) -> Iterator[list]:
+        """A forward rule's backward premise proved on ``ctx`` (:func:`prove_consuming`): the forward
+        engine calls it through the prover it is given, so that it does not import this module."""
+        return prove_consuming(self, ctx, goal, mode, consumed)
+
     def effects(self) -> tuple:
         """A mark of what a proof search leaves behind besides its answer (names it made, monads
         it ran): equal before and after a search that a memo may stand for."""

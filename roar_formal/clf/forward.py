@@ -681,9 +681,8 @@ def general_match(ctx: Context, tpl: Template, b: list, start: int, u, prover) -
                 return False
             if bw is None:
                 return False
-            from .backward import prove_consuming
             mark = u.mark()
-            for extra in prove_consuming(bw, ctx, goal, p.mode, consumed):
+            for extra in bw.prove_consuming(ctx, goal, p.mode, consumed):
                 consumed.extend(extra)
                 if go(k + 1):
                     return True
