@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 
 from roar_formal.cli import main
 from roar_formal.trace.render import MIN_REPEATS, Repeat, Row, event_lines, folded
-from tests.repo import ROOT
+from repo import ROOT
 
 
 def rows_of(texts):
