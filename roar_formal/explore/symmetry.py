@@ -107,11 +107,15 @@ class ConstPerm:
         memo[t] = r
         return r
 
-    def context(self, ctx: Context) -> Context:
-        """The image of a state (its facts renamed: enough for its key and its description)."""
+    @staticmethod
+    def _renamable(ctx: Context) -> None:
         if ctx.rules or ctx.open:
             raise RoarError("symmetry reduction: a state holds rules or facts with logic variables, "
                             "which symmetry reduction does not rename")
+
+    def context(self, ctx: Context) -> Context:
+        """The image of a state (its facts renamed: enough for its key and its description)."""
+        self._renamable(ctx)
         out = Context()
         out.implicit = ctx.implicit
         f = self.term
@@ -123,9 +127,7 @@ class ConstPerm:
 
     def full_context(self, ctx: Context) -> Context:
         """The image of a state as a context the engine can step (indexes built)."""
-        if ctx.rules or ctx.open:
-            raise RoarError("symmetry reduction: a state holds rules or facts with logic variables, "
-                            "which symmetry reduction does not rename")
+        self._renamable(ctx)
         out = Context()
         out.implicit = ctx.implicit
         for mode, t, n in ctx.facts():
