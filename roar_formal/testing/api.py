@@ -366,10 +366,10 @@ class AgentSpec:
                                      else [])
         props = _properties(wanted, never, ROAR_PROPERTIES)
         spec_path = self._file()
-        ps = PropertySpec(check=props, progress=list(progress), sequence_recipes=list(sequence_recipes),
-                          defaulted=defaulted)
+        ps = PropertySpec(check=props, sequence_recipes=list(sequence_recipes), defaulted=defaulted)
         pos = _caller_pos()
         ps.never, ps.spec_never = split_never(never, pos)
+        ps.progress, ps.spec_progress = split_progress(progress, pos)
         for pair in incompatible:
             if isinstance(pair, str) or len(pair) != 2 or not all(isinstance(x, str) and "::" in x for x in pair):
                 raise RoarError(f"incompatible is a list of pairs of tasks named 'agent::task', not {pair!r}", pos)
@@ -403,7 +403,8 @@ class AgentSpec:
         pos = _caller_pos()
         if robot_never or robot_always:
             props.append("robot-invariant")
-        ps = PropertySpec(check=props, progress=list(progress))
+        ps = PropertySpec(check=props)
+        ps.progress, ps.spec_progress = split_progress(progress, _caller_pos())
         ps.never, ps.spec_never = split_never(never, pos)
         ps.robot_never = [(c, pos) for c in robot_never]
         ps.robot_always = [(c, pos) for c in robot_always]
@@ -578,6 +579,26 @@ def split_never(never: Sequence[str], pos: Pos) -> tuple[list, list]:
         else:
             clf.append((p, pos))
     return clf, spec
+
+
+def split_progress(progress: Sequence[str], pos: Pos) -> tuple[list, list]:
+    """``progress`` of an exploration, read as a job file reads ``[livelock] progress``: predicates
+    in the spec's terms (parsed ``Formula``s: a step into a state where one holds is progress)
+    and rule names (globs)."""
+    from ..roar.props import looks_like_spec, parse_formula
+    if isinstance(progress, str):
+        progress = [progress]
+    rules: list = []
+    spec: list = []
+    for p in progress:
+        if not isinstance(p, str) or not p.strip():
+            raise RoarError(f"progress is a list of predicates in the spec's terms such as \"request R0 finished\" "
+                            f"or of rule names, not {p!r}", pos)
+        if looks_like_spec(p):
+            spec.append(parse_formula(p, _string_pos(pos, p), temporal=False))
+        else:
+            rules.append(p)
+    return rules, spec
 
 
 def _string_pos(pos: Pos, text: str) -> Pos:

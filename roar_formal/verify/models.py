@@ -115,6 +115,15 @@ def roar_setup(job: Job, model) -> tuple:
     start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
     start = program.start_context(start_d.start)
     props = job.props
+    if "livelock" in props.check:
+        import fnmatch
+        names = [t.name for t in program.templates]
+        for pat in props.progress:
+            if not any(fnmatch.fnmatchcase(n, pat) for n in names):
+                where = f" ({', '.join(map(str, props.sources))})" if props.sources else ""
+                raise RoarError(f"livelock progress {pat!r}{where} is neither a predicate in the spec's terms (such as "
+                                f"'request R0 finished' or 'gripper::busy == false') nor the name of a rule of the "
+                                f"compiled model: it would make no step progress")
     options = Options(progress_rules=tuple(props.progress) or PROGRESS_RULES, fairness="agent",
                       canonical=job.canonical)
     pairs = []

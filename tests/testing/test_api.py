@@ -1,6 +1,7 @@
 """The public API: loading, running, exploring; results print as the command line prints them."""
 
 import inspect
+import re
 from pathlib import Path
 
 import pytest
@@ -260,3 +261,31 @@ def test_a_run_report_is_what_run_json_prints_and_saves_what_run_writes(pick, ru
     assert header["faults"] == ["close_jaws:1"] and header["fingerprint"]
     dot = run.save_task_tree(tmp_path / "tree.dot").read_text(encoding="utf-8")
     assert dot.startswith("digraph") and "close_jaws" in dot
+
+
+@pytest.mark.parametrize("progress", [["request R0 finished"], ["gripper::busy == true"], ["*"]])
+def test_livelock_progress_is_read_as_a_job_file_reads_it(examples, tmp_path, progress):
+    """``explore(progress=...)`` takes predicates in the spec's terms and rule names, as a job's
+    ``[livelock] progress`` does (they were all taken as rule names, so a predicate made nothing
+    progress); the job file's verdict on the same progress is the oracle."""
+    spec_path = examples / "pick_fixed" / "pick.roar"
+    got = load_spec(spec_path).explore("cell::lifted == true", ["livelock"], progress=progress)
+    props = tmp_path / "p.toml"
+    props.write_text('check = ["livelock"]\n[livelock]\nprogress = [' + ", ".join(f'"{p}"' for p in progress)
+                     + "]\n", encoding="utf-8")
+    job = tmp_path / "j.toml"
+    job.write_text(f'spec = "{spec_path}"\nrequest = "cell::lifted == true"\nproperties = ["{props}"]\n',
+                   encoding="utf-8")
+    from roar_formal.verify.check import run_job
+    from roar_formal.verify.jobs import load_job
+    assert got.verdicts["livelock"].status == run_job(load_job(job)).verdicts["livelock"].status
+
+
+@pytest.mark.parametrize("progress,message", [
+    (["gripper::bussy == true"], "has no variable 'bussy' (did you mean 'busy'?)"),
+    (["no_such_rule"], "is neither a predicate in the spec's terms"),
+])
+def test_a_progress_that_names_nothing_is_an_error(examples, progress, message):
+    with pytest.raises(RoarError, match=re.escape(message)):
+        load_spec(examples / "pick_fixed" / "pick.roar").explore("cell::lifted == true", ["livelock"],
+                                                                 progress=progress)
