@@ -19,7 +19,7 @@ from pathlib import Path
 
 from ..errors import RoarError
 from ..trace.format import write_atomic_bytes
-from .report import counterexample_report, safe_name
+from .report import counterexample_report, replay_command, safe_name
 
 __all__ = ["write_html_report", "render_index"]
 
@@ -173,7 +173,7 @@ def render_index(results, charts: dict, traces: dict, title: str = "roar-verify 
                 tr = traces.get((i, p))
                 if tr:
                     body.append(f'<p>trace: <a class="trace" href="{escape(tr)}">{escape(tr)}</a> '
-                                f"(<code>roar-verify replay {escape(tr)} --model {escape(str(model))}</code>)</p>")
+                                f"(<code>{escape(replay_command(job, tr))}</code>)</p>")
             body.append("</div>")
         body.append("</section>")
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"

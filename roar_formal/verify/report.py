@@ -114,11 +114,16 @@ def counterexample_lines(res, prop: str, verbose: bool = False) -> Lines:
             out.add(f"    picture: {pic}", wrap=True)
     saved = getattr(res, "saved", {}).get(prop)
     if saved:
-        job = res.job
-        on_robot = f" --on-robot {job.robot.scenario}" if getattr(job, "robot", None) is not None else ""
-        out.add(f"    trace: {saved}  (roar-verify replay {saved} --model {job.spec if job.is_roar else job.model}"
-                f"{on_robot})", wrap=True)
+        out.add(f"    trace: {saved}  ({replay_command(res.job, saved)})", wrap=True)
     return out
+
+
+def replay_command(job, trace) -> str:
+    """The command that replays a job's trace: the model, and the functional-layer module when the
+    job named one (replay checks the recorded sources, and finds only the one next to the spec)."""
+    on_robot = f" --on-robot {job.robot.scenario}" if getattr(job, "robot", None) is not None else ""
+    functional = f" --functional {job.functional}" if job.is_roar and getattr(job, "functional", None) else ""
+    return f"roar-verify replay {trace} --model {job.spec if job.is_roar else job.model}{functional}{on_robot}"
 
 
 def _roar_final_lines(rep: dict, shape: str, head: Optional[str] = None) -> Lines:

@@ -641,3 +641,20 @@ def test_a_time_bound_is_reported_as_the_job_wrote_it(tmp_path):
     res = run_job(load_job(job))
     assert not res.graph.complete
     assert "time budget of 3 s reached, loading and compiling included" in res.graph.stop_reason
+
+
+def test_the_printed_replay_command_names_the_jobs_functional_module(tmp_path):
+    """A job that names its functional-layer module: the replay command printed with its
+    counterexample names it too (replay checks the recorded sources; without it, the command as
+    printed was refused)."""
+    from roar_formal.testing import replay
+    from roar_formal.verify.check import run_job, save_counterexample
+    from roar_formal.verify.report import replay_command
+    job = load_job(ROOT / "checker" / "ordered_pick.toml")
+    assert job.functional is not None
+    res = run_job(job)
+    trace = save_counterexample(res, "sequential-achievement", tmp_path)
+    cmd = replay_command(job, trace)
+    assert f"--functional {job.functional}" in cmd
+    rep = replay(trace, model=job.spec, functional=job.functional)
+    assert rep.confirmed
