@@ -25,6 +25,7 @@ from ..clf.forward import Run, enabled_steps
 from ..clf.printer import show
 from ..clf.terms import Const, Root, const, num_term, num_value, string_term, string_value
 from ..errors import RoarError
+from ..trace.format import ROAR_EVENT_KINDS
 from .compile import CRASH_RULES, CompiledModel, Crashes, num_lit
 
 #: the clock's rule in a timed model (docs/semantics.md, Time): a run takes it when nothing else can happen
@@ -117,6 +118,10 @@ class RoarEvent:
     agent: str
     text: str
     data: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.kind not in ROAR_EVENT_KINDS:   # (the trace format's vocabulary: readers refuse others)
+            raise ValueError(f"a ROAR event of unknown kind {self.kind!r}")
 
     def as_json(self) -> dict:
         return {"kind": self.kind, "agent": self.agent, "text": self.text, **self.data}

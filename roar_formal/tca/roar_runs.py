@@ -36,7 +36,8 @@ from __future__ import annotations
 from fractions import Fraction
 from typing import Iterable, Optional
 
-from ..errors import Pos
+from ..errors import Pos, RoarError
+from ..trace.format import ROAR_EVENT_KINDS
 from .trace_events import Declared, Event, Mark, Sent
 
 __all__ = ["is_roar_trace", "task_tree_events"]
@@ -87,11 +88,17 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
     for n, rec in enumerate(recs, 1):
         if not isinstance(rec, dict):
             continue
+        pos = Pos(file, first_line + n - 1, 1)
+        step = rec.get("step")
+        if "step" in rec and (not isinstance(step, int) or isinstance(step, bool)):
+            raise RoarError(f"the step number is {step!r}: a whole number is expected", pos)
         t = _time(rec, n)
         last_time = max(last_time, t)
-        pos = Pos(file, first_line + n - 1, 1)
         for ev in _events_of(rec):
             kind = ev.get("kind")
+            if kind not in ROAR_EVENT_KINDS:
+                raise RoarError(f"an event of unknown kind {kind!r}: a ROAR trace's events are "
+                                f"{', '.join(sorted(ROAR_EVENT_KINDS))}", pos)
             req = ev.get("request")
             plans.event(kind, ev, t, pos)
             if kind in ("sent", "state") and isinstance(req, str):

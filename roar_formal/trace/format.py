@@ -28,6 +28,12 @@ from ..errors import Pos, RoarError
 
 VERSION = 1
 
+#: the kinds of a ROAR event (a step's ``event``; ``several`` holds a step's list of them): the
+#: narrator writes only these (roar/run.py), and a reader refuses any other
+ROAR_EVENT_KINDS = frozenset({"sent", "state", "tasks", "recipe", "recipe-end", "recipe-stop", "primitive-start",
+                              "primitive-end", "write", "pause", "resume", "abort", "conflict", "calling-context",
+                              "crash", "crash-plan", "back"})
+
 
 def write_atomic_bytes(path: str | Path, data: bytes) -> None:
     """:func:`write_atomic` for bytes (pictures), with an unwritable path as a located error."""

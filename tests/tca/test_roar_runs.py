@@ -163,3 +163,21 @@ def test_run_writes_its_task_tree_as_tca_check_reads_it(cli, capsys, tmp_path):
            {m: msg.kind for m, msg in tree.messages.items()}
     assert edges == {(m.parent, m.id) for m in tree.messages.values() if m.parent is not None}
     assert re.search(r'^  "R1" -> "R3" \[style=dashed.*label="SeqAch"\];$', dot, re.M)
+
+
+@pytest.mark.parametrize("change,message", [
+    (('"kind": "primitive-start"', '"kind": "primitive-strat"'), "an event of unknown kind 'primitive-strat'"),
+    (('"step": 3}', '"step": "3"}'), "the step number is '3': a whole number is expected"),
+])
+def test_a_corrupted_run_trace_is_an_error_not_a_pass(cli, capsys, tmp_path, change, message):
+    """A hand-edited event kind used to make its command vanish from the task tree, and a
+    violated trace then passed; a step number written as a string was read as its position."""
+    trace = tmp_path / "run.jsonl"
+    spec = ROOT / "models" / "faulty" / "ordered_pick.roar"
+    cli(capsys, "run", spec, "--request", "cell::done == true", "--trace", trace)
+    text = trace.read_text(encoding="utf-8")
+    assert change[0] in text
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(text.replace(change[0], change[1], 1), encoding="utf-8")
+    code, out, err = cli(capsys, "tca-check", bad)
+    assert code == 2 and message in err and f"{bad}:" in err, (code, out, err)
