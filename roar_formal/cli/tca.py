@@ -40,7 +40,10 @@ def _select(rows, names: list[str]):
     known = {name for name, _, _ in rows}
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise RoarError(f"no obligation named {', '.join(unknown)}; `roar-verify prove --list` lists them")
+        import difflib
+        close = [m for n in unknown for m in difflib.get_close_matches(n, sorted(known), n=1, cutoff=0.6)]
+        hint = f" (did you mean {', '.join(repr(m) for m in close)}?)" if close else ""
+        raise RoarError(f"no obligation named {', '.join(unknown)}{hint}; `roar-verify prove --list` lists them")
     return [r for r in rows if not names or r[0] in names]
 
 

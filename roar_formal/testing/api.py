@@ -548,7 +548,9 @@ def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple)
     out: list[str] = []
     for p in properties:
         if p not in allowed:
-            raise RoarError(f"unknown property {p!r}; expected one of: {', '.join(allowed)}", _caller_pos())
+            from ..roar.props import did_you_mean
+            raise RoarError(f"unknown property {p!r}{did_you_mean(str(p), allowed)}; expected one of: "
+                            f"{', '.join(allowed)}", _caller_pos())
         if p not in out:
             out.append(p)
     if never and "invariant" not in out:

@@ -203,13 +203,14 @@ def _bound(b: dict, key: str, path: Path, expected: str, low: float, integer: bo
 def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
     spec = into or PropertySpec()
     d = _load_toml(path)
-    from ..roar.props import looks_like_spec, parse_formula
+    from ..roar.props import did_you_mean, looks_like_spec, parse_formula
     _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant",
                      "robot-invariant", "temporal", "incompatible-tasks"}, "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
-                raise RoarError(f"unknown property '{p}'; expected one of: {', '.join(PROPERTIES)}",
+                raise RoarError(f"unknown property '{p}'{did_you_mean(str(p), PROPERTIES)}; expected one of: "
+                                f"{', '.join(PROPERTIES)}",
                                 Pos(str(path), _line_of(path, "check"), 1))
             if p not in spec.check:
                 spec.check.append(p)
@@ -873,11 +874,12 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
         raise RoarError(f"{path}: --request is for a ROAR spec, not a .clf program")
     if not path.exists():
         raise RoarError(f"{path}: no such file or folder")
+    from ..roar.props import did_you_mean
     wanted = properties or (list(SPEC_DEFAULTS) if spec else ["deadlock"])
     allowed = PROPERTIES if spec else tuple(p for p in PROPERTIES if p not in ROAR_PROPERTIES)
     for p in wanted:
         if p not in allowed:
-            raise RoarError(f"--property {p}: expected one of {', '.join(allowed)}"
+            raise RoarError(f"--property {p}{did_you_mean(p, allowed)}: expected one of {', '.join(allowed)}"
                             + ("" if spec else " (the others read ROAR events: check a spec)"))
         if p == "robot-invariant":
             raise RoarError("--property robot-invariant needs a scenario and its conditions: write them in a "

@@ -35,8 +35,12 @@ class JobResult:
         out = list(self.mismatches)
         for p, v in self.verdicts.items():
             if p not in self.job.expect and v.status == "violated":
-                out.append(f"{p}: violated, and the job expects nothing of it: a violation is an error "
-                           f"(write [expect] {p} = \"violated\" if it is intended)")
+                if "command line" in self.job.props.sources:   # (no job file: nothing can be expected)
+                    out.append(f"{p}: violated: a check from the command line expects every property to hold "
+                               f"(a job file's [expect] {p} = \"violated\" says a violation is intended)")
+                else:
+                    out.append(f"{p}: violated, and the job expects nothing of it: a violation is an error "
+                               f"(write [expect] {p} = \"violated\" if it is intended)")
         return out
 
     @property

@@ -78,7 +78,7 @@ def test_a_spec_or_a_program_is_checked_without_a_job_file(capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "200")
     code, out, err = run_check(capsys, ROOT / "models" / "faulty" / "mutual_make.roar",
                                "-r", "arm::started == true", "--max-states", "10000")
-    assert code == 1 and "deadlock: violated, and the job expects nothing of it" in out
+    assert code == 1 and "deadlock: violated: a check from the command line expects every property to hold" in out
     code, out, err = run_check(capsys, ROOT / "models" / "faulty" / "mutual_make_fixed.roar",
                                "-r", "arm::started == true")
     assert code == 0 and "deadlock: holds" in out and "mission-completion: holds" in out   # the spec defaults
@@ -130,3 +130,9 @@ def test_an_incomplete_job_is_not_headed_ok(roar_cli):
     assert code == 4, (out, err)
     first = next(line for line in out.splitlines() if "conflict" in line and "states" in line)
     assert first.startswith("incomplete conflict"), out
+
+
+def test_a_misspelt_property_on_the_command_line_gets_a_suggestion(capsys):
+    code, out, err = run_check(capsys, ROOT / "models" / "faulty" / "mutual_make.roar", "-r", "arm::started == true",
+                               "-p", "deadlok")
+    assert code == 2 and "--property deadlok (did you mean 'deadlock'?)" in err

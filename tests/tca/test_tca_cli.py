@@ -98,3 +98,14 @@ def test_registered_in_roar_verify():
 
     names = {c.name for c in cli.app.registered_commands}
     assert {"prove", "tca-check", "tca-simulate"} <= names
+
+
+def test_a_misspelt_obligation_gets_a_suggestion(capsys):
+    from roar_formal.cli import main
+    try:
+        main(["prove", "seq_ahc"])
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and "no obligation named seq_ahc (did you mean 'seq_ach'?)" in err
