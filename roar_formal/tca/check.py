@@ -295,9 +295,9 @@ class _Checker:
         path2 = " > ".join(tree.path(d.m2, first.id))
         end = interp.time("end", last)
         ends = f"ends at {show_value(end)}" if end is not LATE else "has not ended when the trace stops"
-        why = (f"SeqAch({d.m1}, {d.m2}) declared at line {d.pos.line}: {last.kind} {last.id} ({path1}) {ends}, "
-               f"after {first.kind} {first.id} ({path2}) starts at {show_value(interp.time('start', first))}; "
-               f"{overlapping} pair(s) of commands/monitors overlap")
+        why = (f"SeqAch({d.m1}, {d.m2}) declared at line {d.pos.line}: {last.kind} {last.id}{_named(last)} ({path1}) "
+               f"{ends}, after {first.kind} {first.id}{_named(first)} ({path2}) starts at "
+               f"{show_value(interp.time('start', first))}; {overlapping} pair(s) of commands/monitors overlap")
         msgs = (d.m1, d.m2, last.id, first.id)
         lines = (d.pos.line,) + _lines_of(tree, msgs[2:])
         return Violation("seq_ach", "theorem seq_ach_subtrees", msgs, why, tuple(dict.fromkeys(lines)))
@@ -427,3 +427,9 @@ def check_trace(path) -> CheckReport:
         raise RoarError("the trace holds no task-tree message (no request, no primitive call, no "
                         "constraint_sent record): there is nothing to check", Pos(str(path), 1, 1))
     return report
+
+
+def _named(m: Message) -> str:
+    """What a message is, as the trace names it (`` 'jaw::press()' by jaw``), for a violation's text."""
+    what = f" '{m.constraint}'" if m.constraint else ""
+    return what + (f" by {m.agent}" if m.agent and m.constraint and "::" not in m.constraint else "")

@@ -181,3 +181,13 @@ def test_a_corrupted_run_trace_is_an_error_not_a_pass(cli, capsys, tmp_path, cha
     bad.write_text(text.replace(change[0], change[1], 1), encoding="utf-8")
     code, out, err = cli(capsys, "tca-check", bad)
     assert code == 2 and message in err and f"{bad}:" in err, (code, out, err)
+
+
+def test_a_sequencing_violation_names_the_commands_as_the_trace_does(cli, capsys, tmp_path):
+    """The violation's commands are named as the spec calls them, not only C1 and C2."""
+    job = load_job(ROOT / "checker" / "ordered_pick.toml")
+    trace = save_counterexample(run_job(job), "sequential-achievement", tmp_path)
+    report = check_trace(trace)
+    (v,) = [v for v in report.violations if v.rule == "seq_ach"]
+    assert "'press()' by jaw" in v.explanation and "'spin()' by drill" in v.explanation
+
