@@ -25,6 +25,8 @@ from typing import Any, Callable, Iterator, Optional
 
 import pytest
 
+from ..errors import RoarError
+
 _BUDGET_KEYS = {"states": "max_states", "max_states": "max_states", "seconds": "max_seconds",
                 "max_seconds": "max_seconds", "memory": "max_memory_mb", "max_memory_mb": "max_memory_mb"}
 _TRACES_KEY = pytest.StashKey[Path]()
@@ -117,6 +119,31 @@ def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
         yield
     finally:
         PLUGIN.reset(token)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator[None]:
+    """A test that fails with a :class:`RoarError` (a mistake in a spec, a request, a fault, a
+    property: the message says where) is shown from the test's own frames: the library's
+    frames under it are cut, so the located message is what the reader sees, not forty lines
+    of roar_formal internals (``--full-trace`` shows them)."""
+    excinfo = call.excinfo
+    if excinfo is not None and excinfo.errisinstance(RoarError) and not item.config.getoption("fulltrace", False):
+        package = str(Path(__file__).resolve().parents[1])
+        frames = []
+        tb = excinfo.value.__traceback__
+        while tb is not None:
+            frames.append(tb)
+            tb = tb.tb_next
+        kept = [f for f in frames if not f.tb_frame.f_code.co_filename.startswith(package)]
+        if kept and len(kept) < len(frames):
+            # (pytest prints the exception's own traceback: relink it past the library's frames)
+            for a, b in zip(kept, kept[1:]):
+                a.tb_next = b
+            kept[-1].tb_next = None
+            excinfo.value.__traceback__ = kept[0]
+            excinfo.traceback = excinfo.traceback.filter(lambda entry: not str(entry.path).startswith(package))
+    yield
 
 
 @pytest.fixture

@@ -32,7 +32,8 @@ VERSION = 1
 #: narrator writes only these (roar/run.py), and a reader refuses any other
 ROAR_EVENT_KINDS = frozenset({"sent", "state", "tasks", "recipe", "recipe-end", "recipe-stop", "primitive-start",
                               "primitive-end", "write", "pause", "resume", "abort", "conflict", "calling-context",
-                              "crash", "crash-plan", "back"})
+                              "crash", "crash-plan", "back",
+                              "robot"})   # (a step of the robot in a lockstep run: testing/stateful.py)
 
 
 def write_atomic_bytes(path: str | Path, data: bytes) -> None:

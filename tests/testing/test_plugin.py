@@ -169,3 +169,21 @@ def test_parse_budget():
                                                                   "max_memory_mb": 512}
     with pytest.raises(ValueError, match="above 0"):
         parse_budget("seconds=0")
+
+
+def test_a_mistake_in_a_test_is_shown_without_the_librarys_frames(pytester, examples):
+    """A RoarError (here a request with '=' for '==') is shown from the test's own code: the
+    located message, not dozens of lines of roar_formal internals."""
+    shutil.copytree(examples / "pick_fixed", pytester.path / "pick")
+    pytester.makepyfile(test_mistake='''
+from roar_formal import load_spec
+
+def test_wrong_request():
+    load_spec("pick/pick.roar").run("cell::lifted = true")
+''')
+    result = pytester.runpytest(*QUIET, "test_mistake.py")
+    result.assert_outcomes(failed=1)
+    out = result.stdout.str()
+    assert "<request>:1:14: unexpected '='" in out
+    assert "roar_formal/roar/parser.py" not in out and "roar_formal/testing/api.py" not in out
+    assert 'load_spec("pick/pick.roar").run("cell::lifted = true")' in out
