@@ -80,16 +80,6 @@ Where it came from: canonical keys by colours when the refinement ends discrete 
 renaming of every fact; ``clf/state.py``), 4-byte key words, the merged matcher with a cheaper
 premise selection (``clf/forward.py``), rigid paths kept per family bag, transitions' steps
 kept packed (``explore/system.py``). The state graphs are the old ones edge for edge.
-
-Next round (2026-11-27, quiet machine, ``--only conflict,ensure_slammed,fan-6 --max-states 6000``,
-two runs each side, states/cpu-s and bytes/state old → new): conflict 2,786/2,748 → 3,022/3,135,
-1,430 → 1,381/1,331; ensure_slammed 3,555/3,730 → 3,596/3,819, 1,400 → 1,400/1,456;
-ensure_slammed_fixed 3,331/3,370 → 3,491/3,706, 1,138 → 1,138; fan-6 1,787/1,886 → 2,223/2,284,
-9,741 → 10,397/10,418. From: a state's joins carried from the state it was made from (the
-template tables of ``clf/forward.py``), a one-pass key of linear contexts and item numbers
-without triples (``clf/state.py``), roots hash-consed per head (``clf/terms.py``), clause
-premises instantiated once the head unifies (``clf/backward.py``). Graphs, states, steps and
-fresh names the old ones (hashes on 24 models).
 """
 
 from __future__ import annotations

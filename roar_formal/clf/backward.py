@@ -63,11 +63,6 @@ class Backward:
         engine calls it through the prover it is given, so that it does not import this module."""
         return prove_consuming(self, ctx, goal, mode, consumed)
 
-    def effects(self) -> tuple:
-        """A mark of what a proof search leaves behind besides its answer (names it made, monads
-        it ran): equal before and after a search that a memo may stand for."""
-        return self._names, len(self.monad_runs)
-
     def fresh_name(self, base: str = "X") -> str:
         self._names += 1
         return f"{base}{self._names}"
@@ -231,17 +226,8 @@ class Backward:
                 break
         if type(t) is Root:
             rev = evs[::-1]
-            mark = self.u.mark()
-            if not self.u.unify(subst(t, rev) if evs else t, goal):
-                self.u.undo(mark)
-                return
-            # the premises are instantiated only once the head unifies (most clauses tried do not)
             prems = [(m, subst(d, rev[len(rev) - k:]) if k else d) for m, d, k in raw]
-            marks = {PERS: "!", AFF: "@", LIN: ""}
-            for args in self._premises(prems, len(prems) - 1, floor, aff_ok):
-                # args were solved last premise first; print them in declaration order
-                yield ("app", head, [(marks[m], a) for (m, _), a in zip(prems, reversed(args))])
-            self.u.undo(mark)
+            yield from self._clause_rest(subst(t, rev) if evs else t, prems, goal, floor, aff_ok, head)
             return
         prems: list[tuple[str, Node]] = []
         while True:

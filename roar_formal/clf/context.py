@@ -148,10 +148,6 @@ class Context:
         self.open: list[tuple[str, Node]] = []
         self.implicit: Optional[dict] = None  # the program's implicit-argument counts, for printing
         self._canon = None  # state.canonical_key's cached result; every mutator clears it
-        # forward.enabled_steps' table of this context's joins (set once every step is found), and
-        # how this context was made from another's (forward.build_planned); every mutator clears both
-        self._table = None
-        self._delta = None
         # For copy(): families whose bags may not be in the order re-adding the facts would
         # give (None: not tracked, as for any context not made by copy); families whose index
         # entries another context may share (cloned before they change); families whose
@@ -176,7 +172,7 @@ class Context:
 
     def add_fact(self, t: Root, mode: str) -> bool:
         """Add a fact; returns True when the atom is new to the context (index updated)."""
-        self._canon = self._table = self._delta = None
+        self._canon = None
         lin, aff, pers = self.lin, self.aff, self.pers
         new = not (t in lin or t in aff or t in pers)  # self.present(t), inlined
         if mode == LIN:
@@ -240,7 +236,7 @@ class Context:
         if t.evars:
             t = zonk(t)
             if t.evars:
-                self._canon = self._table = self._delta = None
+                self._canon = None
                 if mode == PERS and any(m == PERS and u is t for m, u in self.open):
                     return t
                 self.open.append((mode, t))
@@ -253,7 +249,7 @@ class Context:
         if t.evars:
             if mode == PERS:
                 return
-            self._canon = self._table = self._delta = None
+            self._canon = None
             for i, (m, u) in enumerate(self.open):
                 if u is t and m == mode:
                     del self.open[i]
@@ -266,7 +262,7 @@ class Context:
         return [(m, t) for m, t in self.open if t.head is fam]
 
     def remove_fact(self, t: Root, mode: str) -> None:
-        self._canon = self._table = self._delta = None
+        self._canon = None
         lin, aff = self.lin, self.aff
         if mode == LIN:
             n = lin[t] - 1
@@ -328,7 +324,7 @@ class Context:
     # -------------------------------------------------------------- rules
     def add_rule(self, alts: list[Template], env: tuple, mode: str, source: Node,
                  uid: Optional[int] = None) -> CtxRule:
-        self._canon = self._table = self._delta = None
+        self._canon = None
         r = CtxRule(uid or next(_rule_ids), alts, env, mode, source)
         keys = []
         for t in alts:
@@ -349,7 +345,7 @@ class Context:
         return r
 
     def remove_rule(self, r: CtxRule) -> None:
-        self._canon = self._table = self._delta = None
+        self._canon = None
         del self.rules[r.uid]
         for k in r.keys:
             self.rule_index[k].discard(r.uid)
@@ -461,7 +457,7 @@ class Context:
         c.inert = list(self.inert)
         c.open = list(self.open)
         c.implicit = self.implicit
-        c._canon = c._table = c._delta = None
+        c._canon = None
         return c
 
 
@@ -588,18 +584,23 @@ def _build_index(order: list) -> tuple[dict, dict]:
     big: list = []  # bags past Bag.SMALL: they get their position dictionary at the end
     new_bag = _new_bag
     small1 = Bag.SMALL + 1
-    for t in order:
-        fam = t.head
-        b = index.get(fam)
+
+    def put(d: dict, key, t) -> None:
+        b = d.get(key)
         if b is None:
-            b = index[fam] = new_bag(Bag)
+            b = d[key] = new_bag(Bag)
             b.items = [t]
-            b.pos = b.paths = None
+            b.pos = None
+            b.paths = None
         else:
             items = b.items
             items.append(t)
             if len(items) == small1:
                 big.append(b)
+
+    for t in order:
+        fam = t.head
+        put(index, fam, t)
         args = t.args
         if args:
             per = by_arg.get(fam)
@@ -608,16 +609,7 @@ def _build_index(order: list) -> tuple[dict, dict]:
             elif len(per) < len(args):
                 per.extend({} for _ in range(len(args) - len(per)))
             for d, a in zip(per, args):
-                b = d.get(a)
-                if b is None:
-                    b = d[a] = new_bag(Bag)
-                    b.items = [t]
-                    b.pos = b.paths = None
-                else:
-                    items = b.items
-                    items.append(t)
-                    if len(items) == small1:
-                        big.append(b)
+                put(d, a, t)
     for b in big:
         b.pos = {y: i for i, y in enumerate(b.items)}
     return index, by_arg

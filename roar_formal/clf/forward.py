@@ -1147,7 +1147,7 @@ class Run:
         return not self._any_enabled()
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True)
 class Choice:
     """An enabled step of a state (explorer API)."""
 
@@ -1170,24 +1170,14 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
     program's rules wait for a fact with a given constant a level or two down, and
     ruling them out this way costs a set inclusion instead of a failed match. The
     templates that remain are tried in the given order, so the steps' order is
-    unchanged. In a context of linear facts, each once (a compiled ROAR model's), the steps come
-    from a table of joins carried from the state this one was made from (see
-    :func:`_table_steps`): the same steps, in the same order, the same fresh ids taken."""
+    unchanged."""
+    paths = _context_paths(ctx)
     pairs, unique = _filters(templates)
     seen_all: Optional[set] = None if unique else set()
     # a context of linear facts, each once (a compiled ROAR model's): rules with proved premises
     # that had no match on the same facts before have none now (see _zero_memo)
     zero_ok = (not first_only and not ctx.aff and not ctx.pers and not ctx.open
                and getattr(prover, "quick", None) is not None and len(ctx.lin) == sum(ctx.lin.values()))
-    if zero_ok and unique:
-        meta = _joins_meta(pairs)
-        bw = getattr(prover, "bw", None)
-        if meta is not None and bw is not None and hasattr(bw, "effects"):
-            yield from _table_steps(pairs, meta, ctx, prover, bw)
-            if rules:
-                yield from _rule_steps(ctx, prover, first_only)
-            return
-    paths = _context_paths(ctx)
     index = ctx.index
     for t, need in pairs:
         if not need <= paths:
@@ -1238,13 +1228,7 @@ def enabled_steps(templates: list[Template], ctx: Context, prover: Optional[Prov
             if key not in seen:
                 seen.add(key)
                 yield Choice(t, None, bindings, consumed)
-    if rules:
-        yield from _rule_steps(ctx, prover, first_only)
-
-
-def _rule_steps(ctx: Context, prover, first_only: bool) -> Iterator[Choice]:
-    """The enabled steps of the context's rules (after the program's templates')."""
-    for r in list(ctx.rules.values()):
+    for r in (list(ctx.rules.values()) if rules else ()):
         for t in r.alts:
             if not t.forward:
                 continue
@@ -1252,462 +1236,6 @@ def _rule_steps(ctx: Context, prover, first_only: bool) -> Iterator[Choice]:
                 yield Choice(t, r.uid, bindings, consumed)
                 if first_only:
                     return
-
-
-# ------------------------------------------------------------------ joins kept from state to state
-#
-# The explorer's states are mostly made from a state by one step that consumes and adds a few
-# facts, and every template is matched again in each. In a context of linear facts, each once
-# (a compiled ROAR model's), a template's matches come from its *joins*: the ways its context
-# premises can be found, each fact at most once, after which the proved premises (persistent
-# or built-in, so answered from the slots' values alone) are proved in the order written. So
-# the joins of a state made by a step are its parent's joins that use no consumed fact, plus
-# the joins that use an added one (found by seeding the premise with it); each join keeps its
-# proofs' answer and the fresh ids they took. Three things make this the engine's answer:
-#
-# * Which joins exist does not depend on the order premises are matched in, nor does the
-#   answer of a join's proofs (each is a function of the slots' values), nor how many ids they
-#   take (each proved premise takes one per unbound slot plus its search's, memoised or not).
-#   The ids of the joins carried over are skipped as proving them again would take them, so the
-#   fresh names made afterwards are those of the plain search (the explorer makes them only
-#   once every step is found).
-# * The order of a template's matches and of each match's consumed facts is the plain
-#   search's (:func:`all_matches`): it is replayed for each match, premise by premise, with
-#   :func:`_select`'s choices in this state (:func:`_replay`), and the matches sorted by the
-#   positions their facts have in the bags chosen.
-# * A state without a parent's table (the start, a state rebuilt from a frozen one) finds every
-#   join afresh; a template whose missing match the zero memo answers keeps only the ids, and is
-#   joined afresh in a child that touches its families; a template whose proofs made names or
-#   ran a monad (not memoised) is matched afresh in every state.
-#
-# A table is ``(pairs, ids, entries, wins, made)``. ``entries`` maps a template's position in
-# ``pairs`` to ``(ids, joins)`` (``joins`` None when not known) or _FRESH (matched afresh every
-# time), each join ``(facts by context premise, ids, answers)`` with ``answers`` the bindings of
-# each proof; a position without an entry has no join. ``wins`` maps the positions with an
-# answer to their joins with one; ``ids`` is the sum over the entries; ``made`` maps the
-# positions in ``wins`` to their steps (one reused as it is where the step touched none of its
-# families: its premises are then matched in the same order).
-
-_FRESH = "fresh"   # an entry: matched afresh in every state
-
-
-def _joins_meta(pairs: tuple):
-    """Per template list: (per template: it, its plan, its proved premises, its families, its
-    zero-memo families; family -> ``(template position, premise position, the premise's rigid
-    paths)`` of the context premises of that family; fact -> the premises it may match), or
-    None when some template cannot be kept in a table (a proved premise that is neither
-    persistent nor built-in, a premise of no family, no premise in the context)."""
-    got = _meta_memo.get(id(pairs))
-    if got is not None and got[0] is pairs:
-        return got[1]
-    infos = []
-    prems: dict = {}
-    shared: dict = {}   # (equal sets of paths kept once: most premises of a family have the same)
-    ok = True
-    for i, (t, _need) in enumerate(pairs):
-        plan, ctx_list, back = _plans(t)
-        if any(p.mode != PERS and p.family not in BUILTINS for p in back) or \
-                any(p.family is None or type(p.pattern) is not Root for p in ctx_list) or not ctx_list:
-            ok = False
-            break
-        fams = tuple(dict.fromkeys(p.family for p in ctx_list))
-        infos.append((t, plan, back, fams, _zero_families(t)))
-        for j, p in enumerate(ctx_list):
-            out = [(p.family,)]
-            _rigid_paths(p.pattern, (p.family,), _PATH_DEPTH, out)
-            out = frozenset(out)
-            prems.setdefault(p.family, []).append((i, j, shared.setdefault(out, out)))
-    meta = (tuple(infos), {f: tuple(v) for f, v in prems.items()}, {}) if ok else None
-    if len(pairs) > 8:
-        if len(_meta_memo) > 64:
-            _meta_memo.clear()
-        _meta_memo[id(pairs)] = (pairs, meta)
-    return meta
-
-
-def _premises_of(meta: tuple, t: Node) -> tuple:
-    """``((template position, premise position), ...)``: the context premises fact ``t`` may
-    match (its family's, whose rigid paths it has), remembered per set of rigid paths (facts
-    that differ only in fresh names have the same; at most _SEEDS_MAX sets)."""
-    ps = _fact_paths.get(t)
-    if ps is None:
-        ps = _paths_of_fact(t)
-    memo = meta[2]
-    got = memo.get(ps)
-    if got is None:
-        cands = meta[1].get(t.head)
-        if not cands:
-            got = ()
-        else:
-            have = frozenset(ps)
-            got = tuple([(i, j) for i, j, need in cands if need <= have])
-        if len(memo) >= _SEEDS_MAX:
-            memo.clear()
-        memo[ps] = got
-    return got
-
-
-def _has_paths(ctx: Context, t: Template) -> bool:
-    """``t``'s rigid paths all occur in some fact of ``ctx`` (as ``t._rigid <= _context_paths(ctx)``):
-    a path begins with its fact's family, so each family's bag is asked for its own."""
-    need = t.__dict__.get("_rigid_fams")
-    if need is None:
-        by: dict = {}
-        for p in t._rigid:
-            by.setdefault(p[0], set()).add(p)
-        need = t._rigid_fams = tuple((f, tuple(v)) for f, v in by.items())
-    index = ctx.index
-    for fam, ps in need:
-        bag = index.get(fam)
-        if bag is None:
-            return False
-        have = bag.paths
-        if have is None:
-            have = _bag_paths(bag.items)
-            intern = _bag_paths_intern
-            if len(intern) >= _BAG_PATHS_MAX:
-                intern.clear()
-            have = bag.paths = intern.setdefault(have, have)
-        for p in ps:
-            if p not in have:
-                return False
-    return True
-
-
-_SEEDS_MAX = 4096
-_meta_memo: dict = {}
-
-
-def _match_args(args: tuple, targs: tuple, b: list, trail: list) -> bool:
-    """Match a premise's arguments (its plan: constants, bare slots, patterns) against a fact's."""
-    for j, kind, v in args:
-        a = targs[j]
-        if kind == _SLOT:
-            w = b[v]
-            if w is None:
-                if a.maxb:   # would capture a variable bound inside the pattern
-                    return False
-                b[v] = a
-                trail.append(v)
-            elif w is not a:
-                return False
-        elif kind == _CONST:
-            if a is not v:
-                return False
-        elif not match(v, a, b, trail):
-            return False
-    return True
-
-
-def _joins(plan, done: list, left: int, b: list, assign: list, trail: list, index, by_arg, out: list) -> None:
-    """Append ``(facts by premise, bindings)`` for every way of finding the remaining context
-    premises (``done`` False) of a context of linear facts, each once; any order would do, the
-    matcher's (fewest candidates first) finds failing joins early."""
-    sel = _select(plan, done, b, index, by_arg)
-    if sel is None:
-        return
-    best, bag, _n = sel
-    modes, _fam, arity, args, _keyed = plan[best]
-    if modes[0] != LIN:
-        return   # (no persistent or affine fact in such a context)
-    done[best] = True
-    for t in bag.items:
-        targs = t.args
-        if len(targs) != arity or t in assign:
-            continue
-        mark = len(trail)
-        if _match_args(args, targs, b, trail):
-            assign[best] = t
-            if left == 1:
-                out.append((tuple(assign), tuple(b)))
-            else:
-                _joins(plan, done, left - 1, b, assign, trail, index, by_arg, out)
-            assign[best] = None
-        while len(trail) > mark:
-            b[trail.pop()] = None
-    done[best] = False
-
-
-def _seeded_joins(plan, nslots: int, seeds: list, ctx: Context, found: dict) -> None:
-    """Add to ``found`` (facts -> bindings) the joins that take fact ``a`` for premise ``j``, for
-    each ``(a, j)`` of ``seeds``."""
-    n = len(plan)
-    index, by_arg = ctx.index, ctx.by_arg
-    for a, j in seeds:
-        modes, _pfam, arity, args, _keyed = plan[j]
-        if modes[0] != LIN or len(a.args) != arity:
-            continue
-        b = [None] * nslots
-        trail: list = []
-        if not _match_args(args, a.args, b, trail):
-            continue
-        if n == 1:
-            found.setdefault((a,), tuple(b))
-            continue
-        assign = [None] * n
-        assign[j] = a
-        done = [False] * n
-        done[j] = True
-        out: list = []
-        _joins(plan, done, n - 1, b, assign, trail, index, by_arg, out)
-        for facts, bindings in out:
-            found.setdefault(facts, bindings)
-
-
-def _prove_joins(t: Template, back: tuple, joins, ctx: Context, prover, bw) -> tuple:
-    """(``[(facts, ids, answers)]`` for ``(facts, bindings)`` joins, whether a proof made names or
-    ran a monad): their proved premises proved in the order written, as :func:`_search_back`
-    proves them. Answers from proofs that made names are not to be kept for another state."""
-    out = []
-    if not back:
-        for facts, bindings in joins:
-            out.append((facts, 0, (bindings,)))
-        return out, False
-    effects = bw.effects()
-    for facts, bindings in joins:
-        first = next_param_id()
-        got: list = []
-        _search_back(0, back, list(bindings), (), [], ctx, t, prover, got, False)
-        out.append((facts, next_param_id() - first, tuple([g[0] for g in got])))
-    return out, bw.effects() != effects
-
-
-def _fresh_entry(info, ctx: Context, prover, bw, paths_of) -> tuple:
-    """A template's entry found afresh: ``(entry, joins with an answer)``; the entry is None
-    when there is no join (nothing to keep)."""
-    t, plan, back, _fams, zfams = info
-    if not t._rigid <= paths_of():
-        return None, ()
-    zkey = None
-    if zfams is not None:
-        zkey = _zero_key(t, zfams, ctx.index)
-        ids = _zero_memo.get(zkey)
-        if ids is None:
-            ids = _zero_older.get(zkey)
-            if ids is not None:
-                _zero_remember(zkey, ids)
-        if ids is not None:
-            skip_param_ids(ids)   # the ids the proofs would have taken
-            return (ids, None), ()   # (its joins not known: found afresh when they may change)
-    n = len(plan)
-    raw: list = []
-    _joins(plan, [False] * n, n, [None] * t.nslots, [None] * n, [], ctx.index, ctx.by_arg, raw)
-    if not raw:
-        return None, ()
-    first = next_param_id()
-    joins, volatile = _prove_joins(t, back, raw, ctx, prover, bw)
-    ids = next_param_id() - first
-    wins = tuple([j for j in joins if j[2]])
-    if volatile:
-        return _FRESH, wins
-    if zkey is not None and not wins:
-        _zero_remember(zkey, ids)
-    return (ids, tuple(joins)), wins
-
-
-def _zero_key(t: Template, fams: tuple, index: dict) -> tuple:
-    """The zero memo's key (see :func:`enabled_steps`): the template, then its families' facts
-    in bag order, each family's followed by None."""
-    key = [t]
-    for f in fams:
-        bag = index.get(f)
-        if bag is not None:
-            key += bag.items
-        key.append(None)
-    return tuple(key)
-
-
-def _table_steps(pairs: tuple, meta: tuple, ctx: Context, prover, bw) -> Iterator[Choice]:
-    """:func:`enabled_steps` of a context of linear facts, each once, by its table of joins (see
-    above): the same steps in the same order, the same fresh ids taken."""
-    infos = meta[0]
-    paths = []
-
-    def paths_of():
-        if not paths:
-            paths.append(_context_paths(ctx))
-        return paths[0]
-
-    delta = ctx._delta
-    parent = delta[0] if delta is not None else None
-    pmade = None
-    if parent is not None and parent[0] is pairs:
-        _ptpl, pids, pentries, pwins, pmade = parent
-        removed, added = delta[1], delta[2]
-        touched: dict = {}   # template position -> [(added fact, premise position)]
-        if removed:
-            for i, e in pentries.items():   # (a template without joins loses none)
-                if e is _FRESH or e[1] is None:
-                    touched[i] = []
-                    continue
-                for j in e[1]:
-                    for f in j[0]:
-                        if f in removed:
-                            touched[i] = []
-                            break
-                    else:
-                        continue
-                    break
-        else:
-            for i, e in pentries.items():
-                if e is _FRESH:
-                    touched[i] = []
-        for x in added:
-            for i, j in _premises_of(meta, x):
-                seeds = touched.get(i)
-                if seeds is None:
-                    touched[i] = [(x, j)]
-                else:
-                    seeds.append((x, j))
-        entries = dict(pentries)
-        wins = dict(pwins)
-        carried = pids   # the ids of the entries carried over unchanged
-        for i in touched:
-            old = pentries.get(i)
-            if old is not None and old is not _FRESH:
-                carried -= old[0]
-        skip_param_ids(carried)   # as proving their joins again would take them
-        ids = carried
-        for i in sorted(touched):
-            old = pentries.get(i)
-            info = infos[i]
-            if not _has_paths(ctx, info[0]):   # (no join at all: as the plain search skips it)
-                entries.pop(i, None)
-                wins.pop(i, None)
-                continue
-            if old is _FRESH or (old is not None and old[1] is None):
-                e, w = _fresh_entry(info, ctx, prover, bw, paths_of)
-            else:   # (no entry: no join)
-                e, w = _delta_entry(info, old[1] if old is not None else (), removed, touched[i], ctx, prover, bw)
-            if e is None:
-                entries.pop(i, None)
-            else:
-                entries[i] = e
-                if e is not _FRESH:
-                    ids += e[0]
-            if w:
-                wins[i] = w
-            else:
-                wins.pop(i, None)
-    else:
-        entries = {}
-        wins = {}
-        ids = 0
-        for i, info in enumerate(infos):
-            e, w = _fresh_entry(info, ctx, prover, bw, paths_of)
-            if e is not None:
-                entries[i] = e
-                if e is not _FRESH:
-                    ids += e[0]
-            if w:
-                wins[i] = w
-    choices = []
-    made = {}
-    if pmade is not None:
-        changed = {x.head for x in removed}
-        changed.update([x.head for x in added])
-    for i in sorted(wins):
-        if pmade is not None and i not in touched:
-            got = pmade.get(i)
-            if got is not None and len(got) == 1 and changed.isdisjoint(infos[i][3]):
-                # one step, on families the step left alone: the premises are matched in the same
-                # order (the bags have the same sizes), so it is the step of the source state
-                made[i] = got
-                choices.extend(got)
-                continue
-        t, plan = infos[i][0], infos[i][1]
-        got = made[i] = _ordered_choices(t, plan, wins[i], ctx)
-        choices.extend(got)
-    ctx._table = (pairs, ids, entries, wins, made)
-    ctx._delta = None   # (the source's table is freed once every state made from it has its own)
-    yield from choices
-
-
-def _delta_entry(info, old: tuple, removed: list, seeds: list, ctx: Context, prover, bw) -> tuple:
-    """A template's entry in a state made by a step from its entry in the step's source:
-    the joins that use no consumed fact (their ids skipped), and those that use an added one."""
-    t, plan, back, _fams, zfams = info
-    kept = []
-    kept_ids = 0
-    for j in old:
-        for f in j[0]:
-            if f in removed:
-                break
-        else:
-            kept.append(j)
-            kept_ids += j[1]
-    skip_param_ids(kept_ids)
-    ids = kept_ids
-    if seeds:
-        found: dict = {}
-        _seeded_joins(plan, t.nslots, seeds, ctx, found)
-        if found:
-            first = next_param_id()
-            new, volatile = _prove_joins(t, back, list(found.items()), ctx, prover, bw)
-            ids += next_param_id() - first
-            kept += new
-            if volatile:
-                return _FRESH, tuple([j for j in kept if j[2]])
-    if not kept:
-        return None, ()
-    wins = tuple([j for j in kept if j[2]])
-    if not wins and zfams is not None:
-        # no match: what the zero memo would have been told, for a state that finds it afresh
-        _zero_remember(_zero_key(t, zfams, ctx.index), ids)
-    return (ids, tuple(kept)), wins
-
-
-def _ordered_choices(t: Template, plan, wins: tuple, ctx: Context) -> list:
-    """The steps of a template's joins with an answer, in the plain search's order (see above)."""
-    if len(wins) == 1 and len(wins[0][2]) == 1:
-        facts, _ids, answers = wins[0]
-        return [Choice(t, None, answers[0], _replay(plan, t.nslots, facts, ctx)[1])]
-    order = []
-    for facts, _ids, answers in wins:
-        key, consumed = _replay(plan, t.nslots, facts, ctx)
-        for k, bindings in enumerate(answers):
-            order.append((key, k, bindings, consumed))
-    order.sort(key=lambda x: (x[0], x[1]))
-    out = []
-    seen: set = set()   # (as enabled_steps: one step per bindings and multiset of facts)
-    for _key, _k, bindings, consumed in order:
-        key = (bindings, multiset_key(consumed))
-        if key not in seen:
-            seen.add(key)
-            out.append(Choice(t, None, bindings, consumed))
-    return out
-
-
-def _replay(plan, nslots: int, facts: tuple, ctx: Context) -> tuple:
-    """(The positions of a join's facts in the bags the plain search takes them from, the
-    facts in the order it matches their premises), by replaying its choices (:func:`_select`)."""
-    n = len(plan)
-    done = [False] * n
-    b = [None] * nslots
-    trail: list = []
-    key = []
-    consumed = []
-    index, by_arg = ctx.index, ctx.by_arg
-    for _ in range(n):
-        best, bag, _n = _select(plan, done, b, index, by_arg)
-        f = facts[best]
-        pos = bag.pos
-        key.append(pos[f] if pos is not None else bag.items.index(f))
-        _match_args(plan[best][3], f.args, b, trail)
-        done[best] = True
-        pair = _lin_pairs.get(f)
-        if pair is None:
-            if len(_lin_pairs) >= _LIN_PAIRS_MAX:
-                _lin_pairs.clear()
-            pair = _lin_pairs[f] = (LIN, f)
-        consumed.append(pair)
-    return tuple(key), tuple(consumed)
-
-
-#: fact -> (LIN, fact): the pair a step's consumption lists, one per fact (steps taken from state
-#: after state share it, and so do the explorer's packed steps); emptied at _LIN_PAIRS_MAX facts
-_lin_pairs: dict = {}
-_LIN_PAIRS_MAX = 4096
 
 
 #: (template, the facts of each family its context premises read, in bag order) -> the ids its
@@ -1842,23 +1370,14 @@ def _bag_paths(facts: list) -> frozenset:
     for t in facts:
         ps = memo.get(t)
         if ps is None:
-            ps = _paths_of_fact(t)
+            if len(memo) >= _PATHS_MAX:
+                memo.clear()
+                _path_intern.clear()
+            got = [(t.head,)]
+            _rigid_paths(t, (t.head,), _PATH_DEPTH, got)
+            ps = memo[t] = tuple([_path_intern.setdefault(p, p) for p in got])
         acc.update(ps)
     return frozenset(acc)
-
-
-def _paths_of_fact(t: Node) -> tuple:
-    """The rigid paths of fact ``t`` (its family first), remembered in _fact_paths; the tuple is
-    interned, so facts with the same paths (most differ only in fresh names) share it."""
-    memo = _fact_paths
-    if len(memo) >= _PATHS_MAX:
-        memo.clear()
-        _path_intern.clear()
-    got = [(t.head,)]
-    _rigid_paths(t, (t.head,), _PATH_DEPTH, got)
-    ps = tuple([_path_intern.setdefault(p, p) for p in got])
-    ps = memo[t] = _path_intern.setdefault(ps, ps)
-    return ps
 
 
 def multiset_key(consumed) -> tuple:
@@ -1871,8 +1390,6 @@ def successor(ctx: Context, choice: Choice) -> tuple[Context, Step]:
     c = ctx.copy()
     crule = c.rules[choice.ctx_rule] if choice.ctx_rule is not None else None
     step = fire(c, choice.template, list(choice.bindings), list(choice.consumed), crule)
-    if ctx._table is not None and crule is None and _plain_head(choice.template):
-        c._delta = _delta_of(ctx, c, step)
     return c, step
 
 
@@ -1937,24 +1454,7 @@ def build_planned(ctx: Context, step: Step) -> Context:
         c.remove_fact(t, mode)
     for mode, t in step.produced:
         c.add_fact(t, mode)
-    if ctx._table is not None:
-        c._delta = _delta_of(ctx, c, step)
     return c
-
-
-def _delta_of(ctx: Context, c: Context, step: Step) -> Optional[tuple]:
-    """How ``c`` was made from ``ctx`` by ``step``, for :func:`_table_steps`: (``ctx``'s table,
-    the facts it lost, the facts it gained), or None when the step is not one of linear facts."""
-    for mode, _t in step.consumed:
-        if mode != LIN:
-            return None
-    for mode, _t in step.produced:
-        if mode != LIN:
-            return None
-    lin0, lin1 = ctx.lin, c.lin
-    removed = [t for _m, t in step.consumed if t not in lin1]
-    added = list(dict.fromkeys([t for _m, t in step.produced if t not in lin0]))
-    return ctx._table, removed, added
 
 
 def load_positive(ctx: Context, s: Node, compile_fn, name: str = "init") -> list:

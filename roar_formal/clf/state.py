@@ -255,19 +255,6 @@ def _numbered_key(ctx: Context, rounds: int) -> bytes:
 #: every (kind, mode, payload) a key has held -> a number (terms are hash-consed for the
 #: process's life, so this table grows with the distinct hypotheses, not with the states)
 _item_ids: dict = {}
-#: the items of the fast path's linear facts with names: the fact with its names numbered
-#: locally -> {its names' colours -> the item's number} (the same numbers as _item_ids gives, one
-#: count for both: no (mode, fact, colours) triple made or kept per item)
-_colour_ids: dict = {}
-_n_items = 0
-
-
-def _new_item() -> int:
-    """The number of an item never numbered before."""
-    global _n_items
-    i = _n_items
-    _n_items += 1
-    return i
 
 
 def _compact(counts: dict) -> bytes:
@@ -281,7 +268,7 @@ def _compact(counts: dict) -> bytes:
     for k, n in counts.items():
         i = ids.get(k)
         if i is None:
-            i = ids[k] = _new_item()
+            i = ids[k] = len(ids)
         if n >= 256 or i >= _NARROW_IDS:
             big = True
         words.append(i << 8 | n)
@@ -315,7 +302,7 @@ def _wide(counts: dict) -> bytes:
     for k, n in counts.items():
         i = ids.get(k)
         if i is None:
-            i = ids[k] = _new_item()
+            i = ids[k] = len(ids)
         if n >= 1 << 24:   # (a multiplicity past 16 million: no room in the word) pragma: no cover
             raise OverflowError("a hypothesis occurs more than 16,777,215 times")
         words.append(i << 24 | n)
@@ -464,80 +451,9 @@ def _occurrences(t: Node, out: list) -> None:
 _static_ids: dict = {LIN: {}, AFF: {}, PERS: {}}
 
 
-def _lin_key(lin: dict):
-    """``_fast_key`` of a context of linear facts only (no rule, no other hypothesis), each fact
-    with names there once, whose colouring is discrete after the first round (the usual case in
-    a compiled ROAR model's states): the same words in one pass over the facts, without the
-    per-fact records of the general loop. None when the context is not of that kind (the general
-    loop decides, with its further rounds)."""
-    ids = _item_ids
-    sids = _static_ids[LIN]
-    info_memo = _term_info
-    words: list = []
-    infs: list = []
-    occ: dict = {}
-    for t, n in lin.items():
-        if t.maxp:
-            if n != 1:
-                return None
-            inf = info_memo.get(t)
-            if inf is None:
-                inf = _info(t)
-            infs.append(inf)
-            code = inf[5]
-            p0 = inf[4]
-            if p0 is not None:
-                o = occ.get(p0)
-                if o is None:
-                    occ[p0] = [code]
-                else:
-                    o.append(code)
-                continue
-            for p in inf[0]:
-                o = occ.get(p)
-                if o is None:
-                    occ[p] = [code]
-                else:
-                    o.append(code)
-            continue
-        i = sids.get(t)
-        if i is None:
-            k = ("f", LIN, (t,))
-            i = ids.get(k)
-            if i is None:
-                i = ids[k] = _new_item()
-            sids[t] = i
-        if n >= 256 or i >= _NARROW_IDS:
-            return None
-        words.append(i << 8 | n)
-    if not infs:
-        return _words_bytes(words)
-    colour = {p: hash((o[0],)) if len(o) == 1 else hash(tuple(sorted(o))) for p, o in occ.items()}
-    if len(set(colour.values())) != len(colour):
-        return None
-    cids = _colour_ids
-    for inf in infs:
-        p0 = inf[4]
-        c = colour[p0] if p0 is not None else tuple([colour[p] for p in inf[0]])
-        per = cids.get(inf[3])
-        if per is None:
-            per = cids[inf[3]] = {}
-        i = per.get(c)
-        if i is None:
-            i = per[c] = _new_item()
-        if i >= _NARROW_IDS:
-            return None
-        words.append(i << 8 | 1)
-    return _words_bytes(words)
-
-
 def _fast_key(ctx: Context, rounds: int):
     """The key of a context whose hypotheses with fresh names are all facts and whose colouring
     ends discrete (see above); None otherwise (``_numbered_key`` decides)."""
-    if rounds == 3 and not ctx.aff and not ctx.pers and not ctx.rules and not ctx.inert:
-        got = _lin_key(ctx.lin)
-        if got is not None:
-            return got
     for r in ctx.rules.values():
         if any(isinstance(v, Node) and v.maxp for v in r.env):
             return None
@@ -564,7 +480,7 @@ def _fast_key(ctx: Context, rounds: int):
                 k = ("f", mode, (t,))
                 i = ids.get(k)
                 if i is None:
-                    i = ids[k] = _new_item()
+                    i = ids[k] = len(ids)
                 sids[t] = i
             if n >= 256 or i >= _NARROW_IDS:
                 return None   # (a wide key: _numbered_key writes it)
@@ -573,7 +489,7 @@ def _fast_key(ctx: Context, rounds: int):
         for k, n in _static_others(ctx).items():
             i = ids.get(k)
             if i is None:
-                i = ids[k] = _new_item()
+                i = ids[k] = len(ids)
             if n >= 256 or i >= _NARROW_IDS:
                 return None
             words.append(i << 8 | n)
@@ -620,21 +536,11 @@ def _fast_key(ctx: Context, rounds: int):
         ncolours = nnew
     if ncolours != nparams:
         return None   # a tie: the first-occurrence numbering decides (_numbered_key)
-    cids = _colour_ids
     for mode, n, (ps, _abs0, _seq, local, p0, _c0) in items:
-        c = colour[p0] if p0 is not None else tuple([colour[p] for p in ps])
-        if mode == LIN:
-            per = cids.get(local)
-            if per is None:
-                per = cids[local] = {}
-            i = per.get(c)
-            if i is None:
-                i = per[c] = _new_item()
-        else:
-            k = (mode, local, c)
-            i = ids.get(k)
-            if i is None:
-                i = ids[k] = _new_item()
+        k = (mode, local, colour[p0]) if p0 is not None else (mode, local, tuple([colour[p] for p in ps]))
+        i = ids.get(k)
+        if i is None:
+            i = ids[k] = len(ids)
         if n >= 256 or i >= _NARROW_IDS:
             return None
         words.append(i << 8 | n)
