@@ -31,7 +31,7 @@ from typing import Optional, Union
 
 from ..errors import Pos
 from . import surface as s
-from .parser import parse_expr
+from .parser import is_identifier_word, parse_expr
 from .pretty_surface import format_expr, format_item
 
 __all__ = ["q", "name", "number", "string", "tensor", "Rule", "Comment", "decl", "fact", "backward",
@@ -50,7 +50,7 @@ def name(x: str) -> s.Expr:
     else is a compiler error."""
     if x == "type":
         return s.TypeKw(BUILT)
-    if not _NAME.match(x):
+    if not _NAME.match(x) or not is_identifier_word(x):   # (not a keyword: in, let, Pi, ...)
         raise ValueError(f"not a CLF identifier: {x!r} (build a tree for it)")
     return s.Id(BUILT, x)
 

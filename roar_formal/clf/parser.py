@@ -294,6 +294,11 @@ _DIGITS = re.compile(r"[0-9]+")
 _NEG_INT = re.compile(r"-[0-9]+")
 
 
+def is_identifier_word(w: str) -> bool:
+    """Does the lexer read ``w`` alone as an identifier (not a keyword, a number or an operator)?"""
+    return _word_type(w) == "ID"
+
+
 def _word_type(w: str) -> str:
     kind = _WORDS.get(w)
     if kind is not None:

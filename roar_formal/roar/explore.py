@@ -184,13 +184,18 @@ def job_sequence_pairs(model: CompiledModel, recipes=(), kept=False, source: str
     the job or property file, at the head of the message): never a silent pass."""
     every = sequential_pairs(model, kept=kept)
     head = f"{source}: " if source else ""
+    known = {f"{ag.name}.{t.name}.{r.name}" for ag in model.spec.agents for t in ag.tasks for r in t.recipes}
+    unknown = sorted(set(recipes) - known)
+    if unknown:
+        from .props import did_you_mean
+        raise RoarError(f"{head}[sequential-achievement] names a recipe the spec does not have: {unknown[0]}"
+                        f"{did_you_mean(unknown[0], sorted(known))}; recipes are named 'agent.task.recipe'")
     if recipes:
         missing = set(recipes) - {p.where for p in every}
         if missing:
             raise RoarError(f"{head}[sequential-achievement] names recipes with no 'make A; make B' pair (nor an "
                             f"ensure aborted before a later make or ensure): {', '.join(sorted(missing))}")
     if kept is not True and kept:
-        known = {f"{ag.name}.{t.name}.{r.name}" for ag in model.spec.agents for t in ag.tasks for r in t.recipes}
         unknown = set(kept) - known
         if unknown:
             raise RoarError(f"{head}[sequential-achievement] kept names recipes the spec does not have: "

@@ -51,6 +51,8 @@ def test_wrong_values_are_compiler_errors():
         q("a {} {}", "x")
     with pytest.raises(ValueError, match="identifier"):
         q("a {}", "(b c)")           # a fragment of text where a tree belongs
+    with pytest.raises(ValueError, match="identifier"):
+        name("in")                   # a keyword
     with pytest.raises(ValueError, match="braces"):
         q("{x}")
     with pytest.raises(TypeError):
@@ -80,7 +82,7 @@ def test_a_rule_takes_more_premises_and_conclusions_by_appending():
     assert format_items([rule]).strip() == "r : a X -o !ok X -o {b X * c}."
 
 
-names = st.from_regex(r"[a-z][a-z0-9_]{0,5}", fullmatch=True).filter(lambda x: x not in ("type",))
+names = st.from_regex(r"[a-z][a-z0-9_]{0,5}", fullmatch=True).filter(lambda x: x not in ("type", "in", "let"))
 leaves = st.one_of(names.map(name), st.integers(-5, 5).map(number),
                    st.fractions(max_denominator=4).filter(lambda f: f.denominator in (1, 2, 4)).map(number),
                    st.text(st.sampled_from('ab "\\\n\t%}.'), max_size=4).map(string))

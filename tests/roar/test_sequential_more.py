@@ -274,6 +274,10 @@ def test_job_pairs_refuse_to_check_nothing():
     with pytest.raises(RoarError) as e:
         job_sequence_pairs(model, kept=["cell.work.nope"], source="j.toml")
     assert "kept names recipes the spec does not have: cell.work.nope" in e.value.message
+    some = next(f"{ag.name}.{t.name}.{r.name}" for ag in model.spec.agents for t in ag.tasks for r in t.recipes)
+    with pytest.raises(RoarError) as e:   # a misspelt recipe: not "it has no pair"
+        job_sequence_pairs(model, [some[:-1]], source="j.toml")
+    assert f"names a recipe the spec does not have: {some[:-1]} (did you mean '{some}'?)" in e.value.message
     from roar_formal.roar.compile import compile_spec
     from roar_formal.roar.functional import functional_module, load_registry
     from roar_formal.roar.spec import load_spec
