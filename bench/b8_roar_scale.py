@@ -166,7 +166,11 @@ def one(target: str, request: str | None, max_seconds: float, max_states: int | 
         start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
         start = program.start_context(start_d.start)
         system = RoarSystem(model, start, Options(progress_rules=PROGRESS_RULES, fairness="agent"))
-        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        from roar_formal.explore.search import current_rss_mb
+        # bytes per state: the resident size now, not the peak, before and after (the peak before the
+        # search is the compiler's: a compiler that peaks lower made the search's growth past it look
+        # larger, with the same memory retained)
+        before = current_rss_mb()
         t = time.perf_counter()
         c = time.process_time()
         note = ""
@@ -181,13 +185,14 @@ def one(target: str, request: str | None, max_seconds: float, max_states: int | 
         g = explorer.run(Budget(max_seconds=max_seconds, max_states=max_states))
         cpu = time.process_time() - c
         secs = time.perf_counter() - t
-        after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        after = current_rss_mb()
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         if symmetry:
             name += " (symmetry)"
         return {"name": name, "symmetry": note, "states": g.n_states, "transitions": g.n_edges, "complete": bool(g.complete),
                 "seconds": secs, "states_per_s": g.n_states / secs, "cpu_seconds": cpu,
                 "states_per_cpu_s": g.n_states / max(cpu, 1e-9),
-                "bytes_per_state": (after - before) * 1024 / max(g.n_states, 1), "peak_mb": after / 1024}
+                "bytes_per_state": (after - before) * 1024 * 1024 / max(g.n_states, 1), "peak_mb": peak}
 
     return with_big_stack(go)
 
