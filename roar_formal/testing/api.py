@@ -562,45 +562,36 @@ def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple)
     return out
 
 
-def split_never(never: Sequence[str], pos: Pos) -> tuple[list, list]:
-    """``never`` of an exploration of a spec (or of a stateful machine), read as a job file reads
-    ``[invariant] never``: CLF patterns (``(text, pos)``) and predicates in the spec's terms
-    (parsed ``Formula``s)."""
+def _split_terms(items: Sequence[str], pos: Pos, what: str, example: str) -> tuple[list, list]:
+    """``items`` read as a job file reads them: the predicates in the spec's terms (parsed
+    ``Formula``s), and the others (CLF patterns or rule names, as given); ``what`` names the
+    argument and ``example`` what else it takes, for the error on an item that is neither."""
     from ..roar.props import looks_like_spec, parse_formula
-    if isinstance(never, str):
-        never = [never]
-    clf: list = []
+    if isinstance(items, str):
+        items = [items]
+    other: list = []
     spec: list = []
-    for p in never:
+    for p in items:
         if not isinstance(p, str) or not p.strip():
-            raise RoarError(f"never is a list of predicates in the spec's terms such as \"arm::holding == true && "
-                            f"gripper::closed == false\" or of CLF patterns such as \"busy P * busy P\", not {p!r}",
-                            pos)
+            raise RoarError(f"{what} is a list of predicates in the spec's terms or of {example}, not {p!r}", pos)
         if looks_like_spec(p):
             spec.append(parse_formula(p, _string_pos(pos, p), temporal=False))
         else:
-            clf.append((p, pos))
-    return clf, spec
+            other.append(p)
+    return other, spec
+
+
+def split_never(never: Sequence[str], pos: Pos) -> tuple[list, list]:
+    """``never`` of an exploration of a spec (or of a stateful machine), read as a job file reads
+    ``[invariant] never``: CLF patterns (``(text, pos)``) and predicates in the spec's terms."""
+    clf, spec = _split_terms(never, pos, "never", 'CLF patterns such as "busy P * busy P"')
+    return [(p, pos) for p in clf], spec
 
 
 def split_progress(progress: Sequence[str], pos: Pos) -> tuple[list, list]:
-    """``progress`` of an exploration, read as a job file reads ``[livelock] progress``: predicates
-    in the spec's terms (parsed ``Formula``s: a step into a state where one holds is progress)
-    and rule names (globs)."""
-    from ..roar.props import looks_like_spec, parse_formula
-    if isinstance(progress, str):
-        progress = [progress]
-    rules: list = []
-    spec: list = []
-    for p in progress:
-        if not isinstance(p, str) or not p.strip():
-            raise RoarError(f"progress is a list of predicates in the spec's terms such as \"request R0 finished\" "
-                            f"or of rule names, not {p!r}", pos)
-        if looks_like_spec(p):
-            spec.append(parse_formula(p, _string_pos(pos, p), temporal=False))
-        else:
-            rules.append(p)
-    return rules, spec
+    """``progress`` of an exploration, read as a job file reads ``[livelock] progress``: rule names
+    (globs) and predicates in the spec's terms (a step into a state where one holds is progress)."""
+    return _split_terms(progress, pos, "progress", "rule names")
 
 
 def _string_pos(pos: Pos, text: str) -> Pos:
