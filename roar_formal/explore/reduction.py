@@ -23,10 +23,23 @@ argument by a fact, everything else is "any value":
 (B) for every abstract step ``(r, b)`` in ``T``, its possibly disabled
     instances need an enabling set: if some premise of ``r`` instantiated by
     ``b`` is a fully ground fact absent from ``s`` (in a mode that could serve
-    it), the producers of that fact alone; otherwise the producers of every
-    premise of ``r`` (as an abstract fact under ``b``). A producer is every
-    rule whose head can make a fact overlapping it (abstract step with the
-    binding read off the overlap).
+    it), the producers of that fact alone; else the cheaper of the producers
+    of a premise no fact of ``s`` overlaps, or a split on a premise some facts
+    overlap (one abstract step per such fact, with the binding it gives, plus
+    the producers of the premise for the instances waiting on a new fact);
+    otherwise the producers of every premise of ``r`` (as an abstract fact
+    under ``b``). A producer is every rule whose head can make a fact
+    overlapping it (abstract step with the binding read off the overlap,
+    partial terms kept for the fresh names in them), except a rule that puts
+    back the very fact it consumed.
+
+Rules in the context: an abstract step is ``(template, binding, where)``,
+``where`` naming the rule of the context it is a step of (its binding holds
+that rule's slot values), or saying that it stands for rules of that template
+not in the context yet: their enabling set is the steps that put them there
+(a creator that would have to make fresh a name the binding fixes never
+does). A step of a linear rule of the context uses the rule up: every step of
+that rule joins the set.
 
 The result is a stubborn set in Valmari's sense:
 
@@ -67,7 +80,7 @@ progress steps are visible: a set with an enabled one is given up (full
     under weak fairness is confirmed without reduction by the job runner.
 
 Overlap tests are conservative (slots stand for anything; repeated slots are
-not compared). Where the analysis does not apply (rules in the context, a
+not compared). Where the analysis does not apply (open facts or rules, a
 premise proved from a goal that is not an atom), the state is expanded
 fully, and so it is when the closure grows past ``max_abstract`` abstract
 steps. At most ``max_seeds`` seeds are tried; the smallest set wins, and a
@@ -82,7 +95,7 @@ from ..clf.builtins import BUILTINS
 from ..clf.context import Context
 from ..clf.rules import AFF, LIN, PERS, Template
 from ..clf.forward import match
-from ..clf.terms import Const, Lam, Meta, Node, Root
+from ..clf.terms import Const, Lam, Meta, Node, Param, Root
 
 # An abstract fact: (family, args) where each arg is a ground Node, a term whose remaining
 # slots (Metas) stand for anything, or None ("any").
@@ -116,22 +129,57 @@ def _partial(t: Node, binding: dict) -> Node:
     return t
 
 
+#: a term standing for any term: a slot no rule has (bindings hold partial terms with these)
+_WILD = Root(Meta(-1), ())
+
+
+def _wildcards(t: Node) -> Node:
+    """``t`` as a partial term one rule's binding may hold: each slot (and applied slot)
+    replaced by :data:`_WILD`, so that it is not read as the other rule's, and each subterm
+    naming no fresh name too. What a partial binding is for is the fresh names (which request,
+    which activation a step is about); keeping the rest would let a chain of producers build
+    ever longer terms (a statement list preceded by any statement, and so on)."""
+    if type(t) is Root:
+        h = t.head
+        if type(h) is Param:
+            return t
+        if type(h) is Meta or not t.args:
+            return _WILD
+        args = tuple(_wildcards(a) for a in t.args)
+        if all(a is _WILD for a in args):
+            return _WILD
+        return Root(h, args)
+    return _WILD
+
+
+def _agrees(b: dict, values) -> bool:
+    """Do the slot values ``values`` (a step's bindings) fit the abstract binding ``b``?"""
+    for i, v in b.items():
+        w = values[i]
+        if w is not v and (not v.metas or w is None or not _overlap(v, w)):
+            return False
+    return True
+
+
 def _wild(t: Node) -> bool:
     return type(t) is Root and type(t.head) is Meta
 
 
-def _overlap(x: Node, y: Node) -> bool:
+def _overlap(x: Node, y: Node, fresh: frozenset = frozenset()) -> bool:
     """Could the two terms have a common instance (slots on either side standing for
-    anything; repeated slots are not checked against each other: conservative)?"""
+    anything; repeated slots are not checked against each other: conservative)? A slot of
+    ``x`` in ``fresh`` holds a name the step makes: it is no term given now (only a wildcard)."""
+    if fresh and type(x) is Root and type(x.head) is Meta and x.head.index in fresh and not x.args:
+        return _wild(y)
     if x is y or _wild(x) or _wild(y):
         return True
     tx, ty = type(x), type(y)
     if tx is Root and ty is Root:
         if x.head is not y.head or len(x.args) != len(y.args):
             return False  # heads are interned constants, names or bound variables
-        return all(_overlap(a, b) for a, b in zip(x.args, y.args))
+        return all(_overlap(a, b, fresh) for a, b in zip(x.args, y.args))
     if tx is Lam and ty is Lam:
-        return _overlap(x.body, y.body)
+        return _overlap(x.body, y.body, fresh)
     return bool(x.metas or y.metas)  # other shapes: only identical ground terms are equal
 
 
@@ -160,23 +208,40 @@ def _bind(pattern: Node, fact_args: tuple, fresh: frozenset = frozenset()) -> Op
                     return None
                 continue
             if v.metas:
+                # a partial term: the slot holds some instance of it (its own slots, the other
+                # rule's, stand for anything here)
+                v = _wildcards(v)
+                if v is _WILD:
+                    continue
+                w = b.get(i)
+                if w is None:
+                    b[i] = v
+                elif not _overlap(w, v):
+                    return None
                 continue
             w = b.get(i)
-            if w is None:
+            if w is None or w.metas:
+                if w is not None and not _overlap(w, v):
+                    return None
                 b[i] = v
             elif w is not v:
                 return None
-        elif not _overlap(a, v):
+        elif not _overlap(a, v, fresh):
             return None
     return b
 
 
-def _match_binding(tpl: Template, pattern: Node, fact: Node) -> Optional[dict]:
-    """The slots a consuming premise binds when it matches ``fact``, or None if it cannot."""
+def _match_binding(tpl: Template, pattern: Node, fact: Node, env: tuple = ()) -> Optional[dict]:
+    """The slots a consuming premise binds when it matches ``fact``, or None if it cannot; with
+    ``env`` (a rule of the context's slot values), those slots are set first and the binding
+    returned holds them too."""
     b: list = [None] * max(tpl.nslots, 1)
+    b[:len(env)] = env
     trail: list = []
     if not match(pattern, fact, b, trail):
         return None
+    if env:
+        return {i: v for i, v in enumerate(b) if v is not None}
     return {i: b[i] for i in trail}
 
 
@@ -208,11 +273,18 @@ class Reducer:
         self.provers_of: dict = {}  # family -> templates with a premise of that family proved from clauses
         self.pers_heads: dict = {}  # template -> families it adds as persistent facts
         self.progress = progress
-        self.creator: dict = {}  # template of a rule put in the context -> the top-level rule doing it
+        # template of a rule put in the context -> [(the template whose head puts it there, the
+        # slots that head makes fresh)]
+        self.creators: dict = {}
+        self.nested: set = set()  # id() of the templates of rules put in the context
         for top in self.templates:
             for t in [top, *_nested(top)]:
-                if t is not top:
-                    self.creator[t] = top
+                for a in t.head:
+                    if a[0] == "rule":
+                        fresh_here = frozenset(x[1] for x in t.head if x[0] == "fresh")
+                        for alt in a[2]:
+                            self.nested.add(id(alt))
+                            self.creators.setdefault(alt, []).append((t, fresh_here))
                 fresh = frozenset(a[1] for a in t.head if a[0] == "fresh")
                 for p in t.premises:
                     if p.backward:
@@ -230,6 +302,10 @@ class Reducer:
                         self.consumers.setdefault(p.family, []).append((t, p.pattern))
                 for a in t.head:
                     if a[0] == "fact":
+                        if any(not p.backward and p.mode == a[1] and p.pattern == a[2] for p in t.premises):
+                            # a fact the rule consumes and puts back (a read): it never makes one
+                            # appear that was not there
+                            continue
                         self.producers.setdefault(a[2].head, []).append((t, a[2], fresh))
                         if a[1] == PERS:
                             self.pers_heads.setdefault(t, set()).add(a[2].head)
@@ -239,16 +315,19 @@ class Reducer:
             if any(p.backward and p.family not in BUILTINS for p in o.premises):
                 self.analyzable = False
         if visible_families:
-            for t in self.templates:
+            for t in self.templates + [t for top in self.templates for t in _nested(top)]:
                 fams = {p.family for p in t.premises} | {a[2].head for a in t.head if a[0] == "fact"}
                 if fams & visible_families:
                     self.always.append((t, {}))
         # a closure that grows past this many abstract steps is abandoned (full expansion, which
         # is always sound): the analysis must cost less than the states it saves
         self.max_abstract = 300
+        self.producer_memo: dict = {}   # see _producer_steps (the answers depend on the arguments alone)
+        self.split = True   # refine an abstract step by the facts that may serve a premise ((B))
         self.max_seeds = 4
         # closures from a template that keep growing past max_abstract are not tried again, and
-        # a reducer that has reduced no state after `give_up_after` tries stops analysing (full
+        # a reducer that has reduced fewer than one state in 20 after `give_up_after` tries stops
+        # analysing (full
         # expansion is always sound; the analysis must not cost more than it saves)
         self.costly: dict[int, int] = {}   # id(template) -> closures from it abandoned as too costly
         self.closed: set[int] = set()      # id(template) of seeds whose closure completed once
@@ -265,10 +344,11 @@ class Reducer:
     def choose(self, ctx: Context, choices: list) -> Optional[list[int]]:
         """Indices of a stubborn subset of ``choices`` (the enabled steps of ``ctx``), or None
         for full expansion."""
-        if len(choices) < 2 or not self.analyzable or ctx.rules or self.gave_up:
+        if len(choices) < 2 or not self.analyzable or ctx.open or self.gave_up \
+                or any(r.open for r in ctx.rules.values()):
             return None
         self.tries += 1
-        if self.tries > self.give_up_after and self.reduced == 0:
+        if self.tries > self.give_up_after and self.reduced * 20 < self.tries:
             self.gave_up = True
             return None
         best: Optional[list[int]] = None
@@ -299,27 +379,86 @@ class Reducer:
         self.reduced += 1
         return sorted(best)
 
+    def _producer_steps(self, fam, args: tuple, memo: dict) -> list:
+        """The abstract steps producing a fact of ``fam`` overlapping ``args``: [(template,
+        binding, key)] (memoised in ``memo``: the terms are hash-consed, and the same arguments
+        recur from state to state)."""
+        key = (fam, args)
+        got = memo.get(key)
+        if got is None:
+            got = []
+            for ptpl, pat, fresh in self.producers.get(fam, ()):
+                pb = _bind(pat, args, fresh)
+                if pb is not None:
+                    got.append((ptpl, pb, (id(ptpl), None, tuple(sorted((k, id(v)) for k, v in pb.items())))))
+            memo[key] = got
+        return got
+
+    def _new_producers(self, fam, args: tuple, seen_abs: set, memo: dict) -> int:
+        """How many abstract steps producing a fact of ``fam`` overlapping ``args`` are not in
+        the set yet (the cost of taking that fact as the one a disabled step waits for)."""
+        n = 0
+        for _ptpl, pb, key in self._producer_steps(fam, args, memo):
+            if key not in seen_abs:
+                n += 1 if pb else UNBOUND_COST
+        return n
+
     def _closure(self, ctx: Context, choices: list, seed: int, limit: int) -> Optional[list[int]]:
         """The closure from one enabled step; None once it reaches ``limit`` enabled steps
         (no better than full expansion, or than the best set found so far), or when it takes
-        in a progress step (visible: the set would have to be full)."""
+        in a progress step (visible: the set would have to be full).
+
+        An abstract step is ``(template, binding, where)``: ``where`` is None for a rule of the
+        program, the uid of a rule of the context for that rule (its binding holds the rule's
+        slot values), or ``_FUTURE`` for the rules with that template not in the context yet
+        (rules in the context, see the module docstring)."""
         in_set: set[int] = set()
         seen_abs: set = set()
         work_steps = [seed]
         work_abs: list = []
         in_set.add(seed)
         progress = self.progress
+        memo = self.producer_memo   # (family, abstract arguments) -> the abstract steps producing such a fact
+        if len(memo) > 100_000:
+            memo.clear()
+        live: dict = {}   # id(template) -> the rules of the context with it as an alternative
+        for r in ctx.rules.values():
+            for t in r.alts:
+                live.setdefault(id(t), []).append(r)
 
-        def add_abs(tpl: Template, b: dict) -> None:
-            top = self.creator.get(tpl)
-            if top is not None:
-                # a rule to be put in the context: its steps need the step that puts it there
-                # (the reducer runs only on states with no rule in the context)
-                tpl, b = top, {}
-            key = (id(tpl), tuple(sorted((k, id(v)) for k, v in b.items())))
+        def push(tpl: Template, b: dict, where) -> None:
+            key = (id(tpl), where, tuple(sorted((k, id(v)) for k, v in b.items())))
             if key not in seen_abs:
                 seen_abs.add(key)
-                work_abs.append((tpl, b))
+                work_abs.append((tpl, b, where))
+
+        def add_abs(tpl: Template, b: dict) -> None:
+            """Every step of ``tpl`` agreeing with ``b``: of the program's rule, or of the rules
+            of the context with this template (each with its slot values) and of those that
+            may be put there later."""
+            if id(tpl) not in self.nested:
+                push(tpl, b, None)
+                return
+            for r in live.get(id(tpl), ()):
+                env = _with_env(r.env, b)
+                if env is not None:
+                    push(tpl, env, r.uid)
+            push(tpl, b, _FUTURE)
+
+        def add_consumer(tpl: Template, pat: Node, f: Node) -> None:
+            """The steps of ``tpl`` whose premise ``pat`` may consume the fact ``f``."""
+            if id(tpl) not in self.nested:
+                b = _match_binding(tpl, pat, f)
+                if b is not None:
+                    push(tpl, b, None)
+                return
+            for r in live.get(id(tpl), ()):
+                b = _match_binding(tpl, pat, f, r.env)
+                if b is not None:
+                    push(tpl, b, r.uid)
+            b = _match_binding(tpl, pat, f)
+            if b is not None:
+                push(tpl, b, _FUTURE)
 
         for tpl, b in self.always:
             add_abs(tpl, b)
@@ -338,9 +477,14 @@ class Reducer:
                     if mode == PERS:
                         continue
                     for ctpl, pat in self.consumers.get(f.head, ()):
-                        b = _match_binding(ctpl, pat, f)
-                        if b is not None:
-                            add_abs(ctpl, b)
+                        add_consumer(ctpl, pat, f)
+                if c.ctx_rule is not None:
+                    # (A) for the rule itself: a step of a linear rule of the context uses it up,
+                    # so every step of that rule is in the set
+                    r = ctx.rules[c.ctx_rule]
+                    if r.mode != PERS:
+                        for alt in r.alts:
+                            push(alt, _with_env(r.env, {}), r.uid)
                 # (C) proofs: a persistent fact of a family a proof reads may change the proof
                 # this step committed to, and a persistent fact this step adds may change the
                 # proofs of others
@@ -352,17 +496,27 @@ class Reducer:
                     for qtpl in self.provers_of.get(fam, ()):
                         add_abs(qtpl, {})
                 continue
-            tpl, b = work_abs.pop()
+            tpl, b, where = work_abs.pop()
+            if where is _FUTURE:
+                # no such rule in the context: before any of its steps, a step putting it there
+                # (that alone enables none, but every enabling sequence starts with one). A
+                # creator that would have to make a name of the binding fresh never makes it.
+                for ptpl, fresh in self.creators.get(tpl, ()):
+                    pb = {i: v for i, v in b.items() if i < tpl.nouter}
+                    if any(i in fresh and not v.metas for i, v in pb.items()):
+                        continue
+                    add_abs(ptpl, pb)
+                continue
             # enabled instances of the abstract step join the set
             for j, c in enumerate(choices):
-                if j in in_set or c.template is not tpl:
+                if j in in_set or c.template is not tpl or c.ctx_rule != where:
                     continue
-                cb = c.bindings
-                if all(cb[i] is v for i, v in b.items()):
+                if _agrees(b, c.bindings):
                     in_set.add(j)
                     work_steps.append(j)
             # (B) enabling sets of its disabled instances
-            facts = [(p.mode, _abstract(p.pattern, b)) for p in tpl.premises if not p.backward]
+            premises = [p for p in tpl.premises if not p.backward]
+            facts = [(p.mode, _abstract(p.pattern, b)) for p in premises]
             needed = None
             for mode, (fam, args) in facts:
                 if all(a is not _ANY and not a.metas for a in args):
@@ -371,21 +525,96 @@ class Reducer:
                         needed = [(fam, args)]
                         break
             if needed is None:
+                # Otherwise the cheapest of: a premise no fact of the state can serve, whatever
+                # the binding's open slots are (every instance is disabled by it: only a producer
+                # of such a fact enables one); or splitting on a premise that facts of the state
+                # may serve (the instances taking such a fact are abstract steps with the binding
+                # it gives, each looked at again; the others need a fact for it that is not there,
+                # so a producer of one). Cost: the abstract steps added, one that binds nothing
+                # counted as UNBOUND_COST (it brings in every step of its rule).
+                cost = None
+                split_on = None
+                for p, (mode, (fam, args)) in zip(premises, facts):
+                    got = _serving(ctx, fam, args)
+                    if not got:
+                        n = self._new_producers(fam, args, seen_abs, memo)
+                        if cost is None or n < cost:
+                            needed, cost, split_on = [(fam, args)], n, None
+                    elif self.split and not all(a is not _ANY and not a.metas for a in args):
+                        n = len(got) + self._new_producers(fam, args, seen_abs, memo)
+                        if cost is None or n < cost:
+                            needed, cost, split_on = [(fam, args)], n, (p, got)
+                if split_on is not None:
+                    p, got = split_on
+                    for f in got:
+                        fb = _extend(tpl, p.pattern, f, b)
+                        if fb is not None:
+                            push(tpl, fb, where)
+            if needed is None:
                 needed = [fa for _, fa in facts]
                 # a premise proved from clauses and persistent facts of its family may become
                 # provable when such a fact appears
                 for fam in self.proved.get(tpl, ()):
                     needed.append((fam, None))
             for fam, args in needed:
-                for ptpl, pat, fresh in self.producers.get(fam, ()):
-                    if args is None:
+                if args is None:
+                    for ptpl, _pat, _fresh in self.producers.get(fam, ()):
                         if fam in self.pers_heads.get(ptpl, ()):
                             add_abs(ptpl, {})
-                        continue
-                    pb = _bind(pat, args, fresh)
-                    if pb is not None:
-                        add_abs(ptpl, pb)
+                    continue
+                for ptpl, pb, _key in self._producer_steps(fam, args, memo):
+                    add_abs(ptpl, pb)
         return sorted(in_set)
+
+
+#: what an abstract step that binds no slot counts for when (B) chooses what a disabled step
+#: waits for (it brings in every step of its rule, and their producers in turn)
+UNBOUND_COST = 1000
+
+#: the ``where`` of an abstract step of the rules of a template not in the context yet
+_FUTURE = "future"
+
+
+def _with_env(env: tuple, b: dict) -> Optional[dict]:
+    """A binding ``b`` joined with the slot values of a rule in the context, or None when they
+    disagree."""
+    out = {i: v for i, v in enumerate(env) if v is not None}
+    for i, v in b.items():
+        w = out.get(i)
+        if w is None:
+            out[i] = v
+        elif w is not v and not (v.metas and _overlap(v, w)) and (v.metas or w != v):
+            return None
+    return out
+
+
+def _serving(ctx: Context, fam, args: tuple) -> list:
+    """The facts of ``fam`` in ``ctx`` (in any mode) that may be instances of the abstract fact
+    ``args``."""
+    bag = ctx.index.get(fam)
+    if bag is None:
+        return []
+    return [f for f in bag.items if all(a is _ANY or _overlap(a, x) for a, x in zip(args, f.args))]
+
+
+def _extend(tpl: Template, pattern: Node, fact: Node, b: dict) -> Optional[dict]:
+    """The binding ``b`` extended by matching ``pattern`` with ``fact``, or None if they do not
+    match."""
+    bl: list = [None] * max(tpl.nslots, 1)
+    for i, v in b.items():
+        if not v.metas:
+            bl[i] = v
+    if not match(pattern, fact, bl, []):
+        return None
+    out = {i: v for i, v in enumerate(bl) if v is not None}
+    for i, v in b.items():
+        if v.metas:
+            w = out.get(i)
+            if w is None:
+                out[i] = v
+            elif not _overlap(v, w):
+                return None
+    return out
 
 
 def _present(ctx: Context, g: Node, mode: str) -> bool:

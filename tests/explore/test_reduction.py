@@ -24,8 +24,10 @@ gen = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(gen)
 
 
-def explore(src: str, reduction: bool, budget: Budget = Budget(), **opts):
-    p = Program.from_text(src)
+def explore(src, reduction: bool, budget: Budget = Budget(), **opts):
+    """``src``: a program's text, or the program (keys of states holding rules name the rules'
+    templates: two explorations compare keys only when they read one program)."""
+    p = Program.from_text(src) if isinstance(src, str) else src
     system = ClfSystem(p, p.start_context(p.sig.directives[-1].start), Options(reduction=reduction, **opts))
     ex = Explorer(system)
     g = with_big_stack(ex.run, budget)
@@ -39,6 +41,7 @@ def quiescent_keys(ex: Explorer, g) -> set:
 
 def same_deadlocks(src: str, budget: Budget = Budget()):
     """Explore with and without reduction; the reachable quiescent states must be the same."""
+    src = Program.from_text(src)
     full_ex, full = explore(src, False, budget)
     red_ex, red = explore(src, True, budget)
     if not (full.complete and red.complete):
@@ -220,6 +223,72 @@ def programs(draw):
 @given(programs())
 def test_random_programs_keep_their_deadlocks(src):
     same_deadlocks(src, Budget(max_states=400, max_seconds=2))
+
+
+@st.composite
+def programs_with_rules(draw):
+    """Programs whose heads put rules in the context: a continuation waiting for a fact (on a
+    name the head makes fresh, or one the rule matched), alternatives joined by ``&``, and
+    plain facts, so that states hold rules as a destination-passing program's do."""
+    names = ["k0", "k1"]
+    fams = ["p", "q", "r", "u"]
+    atom = st.tuples(st.sampled_from(fams), st.sampled_from(names + ["X"]))
+    rules = []
+    for i in range(draw(st.integers(1, 4))):
+        prem = draw(st.lists(atom, min_size=1, max_size=2))
+        bound = any(a == "X" for _, a in prem)
+
+        def arg(a: str) -> str:
+            return a if a != "X" or bound else "k1"
+
+        concl = [f"{f} {arg(a)}" for f, a in draw(st.lists(atom, max_size=2))]
+        fresh = draw(st.booleans())
+        if draw(st.booleans()):   # a rule put in the context
+            wait_on = "n" if fresh else arg(draw(st.sampled_from(names + ["X"])))
+            f1, f2, g1, g2 = (draw(st.sampled_from(fams)) for _ in range(4))
+            alt1 = f"{f1} {wait_on} -o {{{g1} {wait_on}}}"
+            if draw(st.booleans()):
+                concl.append(f"(({alt1}) & ({f2} {wait_on} -o {{{g2} k0}}))")
+            else:
+                concl.append(f"({alt1})")
+            if fresh:
+                concl.append(f"{draw(st.sampled_from(fams))} n")
+        elif fresh and concl:
+            concl[0] = concl[0].rsplit(" ", 1)[0] + " n"
+        rhs = " * ".join(concl) or "1"
+        if fresh and " n" in rhs:
+            rhs = f"Exists n:k. {rhs}"
+        lhs = " * ".join(f"{f} {a}" for f, a in prem)
+        rules.append(f"r{i} : {lhs} -o {{{rhs}}}.")
+    start = draw(st.lists(st.tuples(st.sampled_from(fams), st.sampled_from(names)), min_size=1, max_size=4))
+    return ("k : type. k0 : k. k1 : k.\n" + "".join(f"{f} : k -> type.\n" for f in fams)
+            + "\n".join(rules) + "\n#exec * " + " * ".join(f"{f} {a}" for f, a in start) + ".\n")
+
+
+@settings(max_examples=30, deadline=None)
+@given(programs_with_rules())
+def test_random_programs_with_rules_in_the_context_keep_their_deadlocks(src):
+    same_deadlocks(src, Budget(max_states=400, max_seconds=2))
+
+
+CONTINUATIONS = """
+pid : type. p0 : pid. p1 : pid. p2 : pid.
+dst : type.
+job : pid -> type.
+val : dst -> type.
+done : pid -> type.
+start : job P -o {Exists d:dst. (val d -o {done P}) * val d}.
+#exec * job p0 * job p1 * job p2.
+"""
+
+
+def test_continuations_in_the_context_reduce():
+    """Independent processes each waiting on their own fresh destination: the rules they put in
+    the context do not stop the reduction (one interleaving is explored)."""
+    full, red, ex = same_deadlocks(CONTINUATIONS)
+    assert full.n_states == 3 ** 3
+    assert red.n_states == 2 * 3 + 1
+    assert ex.system.reducer.reduced > 0
 
 
 # ------------------------------------------------------------ counterexamples replay
