@@ -153,6 +153,7 @@ class _Share:
         began = time.perf_counter()
         deadline = time.monotonic() + seconds if seconds is not None else None
         codec, system, n = self.codec, self.system, self.n
+        planner = getattr(system, "planned_successors", None)
         strings = self.strings
         done = 0
         stopped = ""
@@ -166,8 +167,13 @@ class _Share:
             loc = self.frontier.popleft()
             g = self.gid[loc]
             ctx = codec.context(self.blobs[loc])
-            for pos, succ in enumerate(system.successors(ctx)):
-                nxt = succ.state
+            # the successors' facts are all that is sent: a system that can plan them gives them
+            # without building each context (the owner reads it back from the bytes anyway)
+            planned = planner(ctx) if planner is not None else None
+            if planned is None:
+                planned = [(succ, None) for succ in system.successors(ctx)]
+            for pos, (succ, view) in enumerate(planned):
+                nxt = succ.state if view is None else view
                 label = strings.setdefault(succ.label, succ.label)
                 group = strings.setdefault(succ.group, succ.group)
                 out[codec.partition(nxt) % n].append(

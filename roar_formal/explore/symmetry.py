@@ -345,7 +345,7 @@ class SymmetricSystem:
         self.options = getattr(inner, "options", None)
 
     def __getattr__(self, name):
-        if name in ("lazy_successors", "build_successor"):   # keys must be the symmetric ones
+        if name in ("lazy_successors", "planned_successors", "build_successor"):   # keys must be the symmetric ones
             raise AttributeError(name)
         return getattr(self.inner, name)
 

@@ -97,18 +97,28 @@ class ClfSystem:
         then calls :meth:`successors`). The same successors, keys and fresh names as
         ``successors`` gives, in the same order: the explorer builds only the new states (most
         successors are states visited already, whose matching indexes would be thrown away)."""
+        planned = self.planned_successors(state)
+        if planned is None:
+            return None
+        return [(succ, self.key(succ.state), None) if view is None else (succ, canonical_key(view), view)
+                for succ, view in planned]
+
+    def planned_successors(self, state: Context) -> Optional[list]:
+        """The successors as :meth:`lazy_successors` gives them, without their keys: ``[(successor,
+        view)]``, a successor whose ``state`` is None having its facts in ``view`` (a process that
+        only sends the successors on, as the distributed search's, needs no key and no built
+        state); None when this system cannot."""
         if not self._lazy_ok():
             return None
         out = []
         for choice in self.program.steps(state):
             planned = plan_successor(state, choice)
             if planned is None:
-                succ = self._successor(state, choice)
-                out.append((succ, self.key(succ.state), None))
+                out.append((self._successor(state, choice), None))
                 continue
             view, step = planned
             out.append((Successor(choice.rule, self._group_of(state, choice), self._progress(choice.rule), None, step),
-                        canonical_key(view), view))
+                        view))
         return out
 
     def build_successor(self, state: Context, succ: Successor, view) -> Context:
