@@ -6,7 +6,10 @@ without a Python traceback; anything else reaching the CLI is a bug.
 
 from __future__ import annotations
 
+import re
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Iterator, Optional
 
 
 @dataclass(frozen=True)
@@ -52,3 +55,40 @@ class UnsupportedError(RoarError):
 
 class QueryError(RoarError):
     """A directive whose outcome differs from what it declared (e.g. solution count)."""
+
+
+def _moved(pos: Optional[Pos], tag: str, origin: Pos) -> Optional[Pos]:
+    if pos is None or pos.file != tag:
+        return pos
+    if pos.line == 1:
+        return Pos(origin.file, origin.line, origin.col + pos.col - 1)
+    return Pos(origin.file, origin.line + pos.line - 1, pos.col)
+
+
+def relocate(exc: RoarError, tag: str, origin: Pos) -> RoarError:
+    """``exc`` with the positions inside a text parsed under the name ``tag`` (a request given as
+    a string, say) moved to where that text is written: ``origin`` is where its first character
+    is (a job file's line and column inside the quotes, a test's line). Changed in place."""
+    exc.pos = _moved(exc.pos, tag, origin)
+    for e in getattr(exc, "errors", ()) or ():
+        if isinstance(e, RoarError):
+            e.pos = _moved(e.pos, tag, origin)
+    pattern = re.compile(re.escape(tag) + r":(\d+):(\d+)")
+
+    def sub(m: re.Match) -> str:
+        return str(_moved(Pos(tag, int(m.group(1)), int(m.group(2))), tag, origin))
+
+    exc.notes = [pattern.sub(sub, n) for n in exc.notes]
+    return exc
+
+
+@contextmanager
+def written_at(tag: str, origin: Optional[Pos]) -> Iterator[None]:
+    """Errors raised inside, at positions of the text named ``tag``, are moved to ``origin``
+    (see :func:`relocate`); with no origin, nothing changes."""
+    try:
+        yield
+    except RoarError as exc:
+        if origin is not None:
+            relocate(exc, tag, origin)
+        raise

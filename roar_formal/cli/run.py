@@ -10,7 +10,10 @@ from typing import Optional
 import typer
 
 from .console import make_console, show
-from ..errors import RoarError
+from ..errors import Pos, RoarError
+
+#: where an error in the text of ``--request`` is reported (its column counted in the option's value)
+COMMAND_LINE_REQUEST = Pos("--request", 1, 1)
 
 
 def register(app: typer.Typer) -> None:
@@ -59,8 +62,9 @@ def register(app: typer.Typer) -> None:
             for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
                 if path is not None:
                     check_output_file(path, option, [Path(f) for f in spec_files(spec_obj.ast)] + [Path(spec)])
-        spec_obj.compile(request, "python", crashes=crashes or None, time=time,   # a bad request (or time)
-                         wait_timeout=wait_timeout)                                # is reported before anything is printed
+        # a bad request (or time) is reported before anything is printed
+        spec_obj.compile(request, "python", crashes=crashes or None, time=time, wait_timeout=wait_timeout,
+                         request_at=COMMAND_LINE_REQUEST)
         console = make_console()
         report = spec_obj.run(request, seed=seed, faults=faults, max_steps=max_steps, fair=fair, strict_faults=True,
                               crashes=crashes, time=time, wait_timeout=wait_timeout)
@@ -104,7 +108,8 @@ def register(app: typer.Typer) -> None:
         from ..roar.ast import walk
         spec_obj = load_spec(spec, functional=functional)
         spec_ast = spec_obj.ast
-        model = spec_obj.compile(request, "abstract", time=time, wait_timeout=wait_timeout)
+        model = spec_obj.compile(request, "abstract", time=time, wait_timeout=wait_timeout,
+                                 request_at=COMMAND_LINE_REQUEST)
         if output is None:
             sys.stdout.write(model.text)
         else:

@@ -744,7 +744,7 @@ def typed_request(spec: Union[a.Spec, CheckedSpec], request: Union[a.Constraint,
     """The checked request and the types of its expressions (``id -> (expr, type)``, the form of
     :attr:`CheckedSpec.typed`); raise :class:`SpecCheckError` if it is wrong."""
     if isinstance(request, str):
-        request = parse_constraint(request, "<request>")
+        request = parse_constraint(request, "<request>")   # (compile.REQUEST_TAG)
     c = _check_request(spec.spec if isinstance(spec, CheckedSpec) else spec, request)
     errors = c.result()
     if errors:

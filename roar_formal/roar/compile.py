@@ -39,7 +39,7 @@ from ..clf import surface as S
 from ..clf.build import (BUILT, Comment, Rule, args_of, backward, decl, exec_, fact, format_items, format_term,
                          head_of, number, q, query, string, tensor)
 from ..clf.terms import format_number
-from ..errors import Pos, RoarError, UnsupportedError
+from ..errors import Pos, RoarError, UnsupportedError, written_at
 from . import ast as a
 from .checks import CheckedSpec, typed_request
 from .spec import checked_spec
@@ -2501,7 +2501,7 @@ def _fold(e: a.Expr, known: dict, checked: CheckedSpec, what: str, structs: dict
 
 def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[Registry] = None,
                  functional: str = "abstract", crashes: Optional[Crashes] = None,
-                 time=None) -> CompiledModel:
+                 time=None, request_at: Optional[Pos] = None) -> CompiledModel:
     """Compile ``spec`` (as :func:`~roar_formal.roar.spec.load_spec` loaded it, or checked) with
     ``request`` (text or Constraint) to CLF.
 
@@ -2510,8 +2510,19 @@ def compile_spec(spec: Union[a.Spec, CheckedSpec], request, registry: Optional[R
     answered by the registry's callables, outside the signature).
     ``crashes`` (docs/semantics.md, "Crashes") and ``time`` ("untimed", the default, "timed" or
     a :class:`Timing`; docs/semantics.md, "Time") are opt-in: without them the model is the one
-    compiled without faults or clock, to the byte.
+    compiled without faults or clock, to the byte. ``request_at``: where the request's text is
+    written (a job file's ``request = "..."``, a test's line), so that an error inside it is
+    reported there rather than at ``<request>``.
     """
+    with written_at(REQUEST_TAG, request_at):
+        return _compile_spec(spec, request, registry, functional, crashes, time)
+
+
+#: the name a request given as text is parsed under (see ``compile_spec``'s ``request_at``)
+REQUEST_TAG = "<request>"
+
+
+def _compile_spec(spec, request, registry, functional, crashes, time) -> CompiledModel:
     checked = checked_spec(spec)
     if registry is not None:
         # every call bound, with the right number of arguments (located), in exploration as in a

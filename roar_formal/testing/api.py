@@ -239,11 +239,13 @@ class AgentSpec:
         return load_registry(self.functional)
 
     def compile(self, request: str, mode: str = "python", crashes: Any = None, time: Any = None,
-                wait_timeout: Optional[int] = None) -> "CompiledModel":
+                wait_timeout: Optional[int] = None, request_at: Optional[Pos] = None) -> "CompiledModel":
         """The compiled model of a request: ``mode`` "python" for runs (the registry's callables
         answer calls), "abstract" for exploration (declared outcomes are rules). ``crashes``: a
         ``roar.compile.Crashes``, or the ``--crash`` values of a run (docs/semantics.md, Crashes).
-        ``time``: "untimed" (default) or "timed", with ``wait_timeout`` in ms (docs/semantics.md, Time)."""
+        ``time``: "untimed" (default) or "timed", with ``wait_timeout`` in ms (docs/semantics.md, Time).
+        An error in the request is reported at ``request_at`` (where its text is written), by
+        default at the caller's line when the text is written there."""
         from ..roar.compile import Crashes, compile_spec
         from ..roar.run import crash_setup
         if mode not in ("python", "abstract"):
@@ -255,7 +257,8 @@ class AgentSpec:
         model = self._compiled.get(key)
         if model is None:
             reg = self.registry()
-            model = compile_spec(self.ast, request, registry=reg, functional=mode, crashes=crashes, time=timing)
+            model = compile_spec(self.ast, request, registry=reg, functional=mode, crashes=crashes, time=timing,
+                                 request_at=request_at or _request_at(request))
             from ..roar.compile import nothing_timed, timeout_unused
             why = nothing_timed(model) or timeout_unused(model)
             if why:
@@ -320,7 +323,8 @@ class AgentSpec:
             raise RoarError("a spec given as text has no functional-layer module to bind to the robot")
         sc = load_scenario(scenario)
         binding = load_robot_binding(self._file(), self.functional)
-        model = compile_spec(self.ast, request, registry=binding.robot, functional="python")
+        model = compile_spec(self.ast, request, registry=binding.robot, functional="python",
+                             request_at=_request_at(request))
         world, prims = split_faults(faults, sc, model)   # a name that is neither is refused there
         wanted = list(dict.fromkeys(prims))
         points = set(world)
@@ -380,6 +384,7 @@ class AgentSpec:
         job = Job(path=spec_path, name=name or _job_name(self.name, request), model=None, props=ps,
                   budget=as_budget(budget), reduction=reduction, spec=spec_path, request=request,
                   functional=self.functional)
+        job.request_at = _request_at(request)
         job.crashes = Crashes(tuple([crash] if isinstance(crash, str) else crash), max_crashes) if crash else None
         job.time = _timing(time, wait_timeout)
         return _explore(job)
@@ -428,6 +433,7 @@ class AgentSpec:
         job = Job(path=spec_path, name=name or _job_name(self.name, request), model=None, props=ps,
                   budget=as_budget(budget), spec=spec_path, request=request, functional=self.functional,
                   robot=setup)
+        job.request_at = _request_at(request)
         return _explore(job)
 
     def _file(self) -> Path:
@@ -452,7 +458,8 @@ class AgentSpec:
             raise RoarError(f"runs must be at least 1, not {runs}")
         sc = load_scenario(Path(scenario))
         binding = load_robot_binding(self._file(), self.functional)
-        model = compile_spec(self.ast, request, registry=binding.robot, functional="python")
+        model = compile_spec(self.ast, request, registry=binding.robot, functional="python",
+                             request_at=_request_at(request))
         world, prims = split_faults(list(faults), sc, model)
         if prims:
             raise RoarError("conform draws the scenario's fault points; primitive faults "
@@ -600,6 +607,16 @@ def _string_pos(pos: Pos, text: str) -> Pos:
     import linecache
     col = linecache.getline(str(pos.file), pos.line).find(text)
     return Pos(pos.file, pos.line, col + 1) if col >= 0 else pos
+
+
+def _request_at(request) -> Optional[Pos]:
+    """Where a request given as text is written in the caller's code (its line, the column inside
+    the quotes when the text is on that line), so that an error in it is reported there."""
+    if not isinstance(request, str):
+        return None
+    pos = _caller_pos()
+    at = _string_pos(pos, request)
+    return at if at is not pos else None
 
 
 def _explore(job) -> "Exploration":

@@ -79,7 +79,7 @@ class JobSystem:
             spec_ast = load_spec(job.spec)
             mine = spec_fingerprint(job.spec, spec_ast, fn_path)
             self._same(mine)
-            model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract",
+            model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract", request_at=job.request_at,
                                  crashes=getattr(job, "crashes", None))
             _program, start, options, pairs = roar_setup(job, model)
             return RoarSystem(model, start, options, pairs)

@@ -97,6 +97,7 @@ class Job:
     swarm_states: int = 10_000      # ... and the states each may visit
     spec: Optional[Path] = None        # a ROAR spec (instead of a .clf model)
     request: Optional[str] = None      # the request the spec is run on
+    request_at: Optional[Pos] = None   # where its text is written (errors inside it are reported there)
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
     robot: Optional[RobotSetup] = None  # robot-backed: the reference robot is the functional layer
     crashes: Any = None                 # [faults]: roar.compile.Crashes, the agents that may crash (None: none)
@@ -560,6 +561,7 @@ def load_job(path: str | Path) -> Job:
         spec = (base / _typed(d, "spec", str, path, "a job file")).resolve()
         job = Job(path=path, name=str(d.get("name", path.stem)), model=None, spec=spec,
                   request=_typed(d, "request", str, path, "a job file"))
+        job.request_at = _string_pos(path, "request", job.request)
         if "functional" in d:
             job.functional = (base / _typed(d, "functional", str, path, "a job file")).resolve()
         if "robot" in d:
@@ -897,6 +899,7 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
     if spec:
         job.spec = path.resolve()
         job.request = request
+        job.request_at = Pos("--request", 1, 1)
     job.props = PropertySpec(check=list(dict.fromkeys(wanted)), sources=["command line"],
                              defaulted=spec and not properties)
     return job

@@ -32,7 +32,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     reg = load_registry(fn_path)
     spec_ast = load_spec(job.spec)
     fingerprint = spec_fingerprint(job.spec, spec_ast, fn_path)
-    model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract",
+    model = compile_spec(spec_ast, job.request, registry=reg, functional="abstract", request_at=job.request_at,
                          crashes=getattr(job, "crashes", None),   # [faults] crash (docs/semantics.md, Crashes)
                          time=getattr(job, "time", None))         # time / [time] (docs/semantics.md, Time)
     from ..roar.compile import nothing_timed, timeout_unused

@@ -173,7 +173,8 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
     binding = load_robot_binding(job.spec, job.functional)
     spec_ast = load_spec(job.spec)
     fingerprint = spec_fingerprint(job.spec, spec_ast, binding.path)
-    model = compile_spec(spec_ast, job.request, registry=binding.robot, functional="python")
+    model = compile_spec(spec_ast, job.request, registry=binding.robot, functional="python",
+                         request_at=job.request_at)
     _check_faults(job, scenario, model)
     conditions = _conditions(job, scenario) if "robot-invariant" in job.props.check else []
     program, start, options, pairs = roar_setup(job, model)

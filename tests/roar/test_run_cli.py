@@ -122,7 +122,7 @@ def test_unknown_variable_in_the_request_exits_2_located(capsys):
     request = "demo_loco::pos == demo_loco::nope"
     code, out, err = cli(capsys, "run", DEMO[0], "--request", request)
     col = request.index("demo_loco::nope") + 1
-    assert_user_error(code, err, f"<request>:1:{col}:", "nope")
+    assert_user_error(code, err, f"--request:1:{col}:", "nope")
     assert out == ""   # nothing ran
 
 
@@ -382,7 +382,7 @@ def test_compile_errors_are_located(capsys, tmp_path):
     request = "demo_loco::pos == demo_loco::goal where demo_loco::goal == demo_loco::pos + 1"
     code, out, err = cli(capsys, "compile", DEMO[0], "--request", request)
     col = request.index("demo_loco::pos + 1") + 1
-    assert_user_error(code, err, f"<request>:1:{col}:", "must be a constant expression")
+    assert_user_error(code, err, f"--request:1:{col}:", "must be a constant expression")
     assert out == ""
     code, out, err = cli(capsys, "compile", DEMO[0], "--request", DEMO[1], "-o", tmp_path)
     assert_user_error(code, err, "cannot write")
