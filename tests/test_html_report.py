@@ -68,6 +68,14 @@ def test_the_report_folder_holds_the_page_the_chart_the_trace_and_the_json(repor
     assert doc[0]["verdicts"]["deadlock"]["status"] == "violated"
     assert doc[0]["verdicts"]["deadlock"]["counterexample"]["report"]["deadlock"]["cycle"] == ["arm", "door"]
     assert doc[0]["verdicts"]["livelock"]["status"] == "holds"
+    # the steps with no ROAR event are left out, as in the terminal, and counted (the JSON has them)
+    steps = doc[0]["verdicts"]["deadlock"]["counterexample"]["report"]["steps"]
+    silent = [s for s in steps if not s["changes"] and all(e["kind"] == "write" for e in s["events"])]
+    rows = re.findall(r'<tr><td class="n">(\d+)</td>', page)
+    assert silent and len(rows) == len(steps) - len(silent)
+    assert {int(r) for r in rows}.isdisjoint(s["step"] for s in silent)
+    assert 'class="internal"' not in page
+    assert f"{len(silent)} engine steps with no ROAR event are not shown" in page
     # no temporary file of the atomic writer is left behind
     assert not [p for p in folder.rglob(".*") if p.is_file()]
 

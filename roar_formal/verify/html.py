@@ -78,6 +78,10 @@ def _summary(results) -> list[str]:
 
 def _steps(rep: dict, is_roar: bool) -> list[str]:
     out = ['<table class="steps"><tr><th>#</th><th>agent</th><th>what happened</th></tr>']
+    hidden = 0
+    # does the cycle (if any) have a step with a ROAR event? If not, its engine steps are shown
+    loop_shown = any(s["loop"] and (s["changes"] or any(ev["kind"] != "write" for ev in s["events"]))
+                     for s in rep["steps"])
     for s in rep["steps"]:
         cls = ' class="loop"' if s["loop"] else ""
         if not is_roar:
@@ -89,11 +93,20 @@ def _steps(rep: dict, is_roar: bool) -> list[str]:
                   for ch in s["changes"]]
         agents = [ev["agent"] for ev in s["events"] if ev["kind"] != "write"] + [ch["agent"] for ch in s["changes"]]
         agent = agents[0] if agents else s["group"]
-        if not lines:   # an engine step with no ROAR event (the text report leaves it out)
+        if not lines:
+            # an engine step with no ROAR event: left out, as the text report leaves it out, unless
+            # the cycle has nothing else to show
+            if not (s["loop"] and not loop_shown):
+                hidden += 1
+                continue
             lines = [f'<code class="internal" title="engine step">{escape(s["rule"])}</code>']
         out.append(f'<tr{cls}><td class="n">{s["step"]}</td><td>{escape(agent)}</td>'
                    f'<td>{"<br>".join(lines)}</td></tr>')
     out.append("</table>")
+    if hidden:
+        out.append(f"<p>{hidden} engine step{'s' if hidden != 1 else ''} with no ROAR event "
+                   f"{'are' if hidden != 1 else 'is'} not shown (the step numbers count them; "
+                   "<code>roar-verify replay TRACE --verbose</code> shows every step).</p>")
     if any(s["loop"] for s in rep["steps"]):
         out.append("<p>Shaded steps form the cycle, which repeats forever.</p>")
     return out
