@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import random
+import sys
 from pathlib import Path
 from typing import Optional
 
@@ -127,6 +129,7 @@ def register(app: typer.Typer) -> None:
     @app.command("tca-check")
     def tca_check(
         trace: Path = typer.Argument(..., help="A JSON Lines trace (engine run, robot run or counterexample)."),
+        as_json: bool = typer.Option(False, "--json", help="Print the result as JSON (the same fields as the table)."),
     ) -> None:
         """Check a trace's task tree against the TCA axioms and its declared constraints; exit 1 on violations."""
         from ..tca.check import check_trace
@@ -134,6 +137,17 @@ def register(app: typer.Typer) -> None:
         console = make_console()
         report = check_trace(trace)
         tree = report.tree
+        if as_json:
+            doc = {"trace": str(trace), "ok": report.ok, "messages": len(tree.messages),
+                   "declared": len(tree.declared), "instances": report.instances, "residual": report.residual,
+                   "seconds": round(report.seconds, 6),
+                   "violations": [{"rule": v.rule, "from": v.source, "messages": list(dict.fromkeys(v.messages)),
+                                   "trace_lines": list(v.lines), "explanation": v.explanation}
+                                  for v in report.violations]}
+            sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+            if not report.ok:
+                raise typer.Exit(1)
+            return
         console.print(f"{trace}: {len(tree.messages)} messages, {len(tree.declared)} declared constraints, "
                       f"{report.instances} axiom instances ({report.residual} left open, decided by the constraint solver), "
                       f"{report.seconds:.3f} s")

@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import json
+
 
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
@@ -51,6 +53,10 @@ def test_every_bundled_run_is_a_conforming_task_tree(cli, capsys, tmp_path, spec
         assert "command" in kinds          # primitive calls are commands
     code, out, err = cli(capsys, "tca-check", trace)
     assert code == 0 and f"{len(report.tree.messages)} messages" in out and "no violations" in out
+    code, out, err = cli(capsys, "tca-check", trace, "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["ok"] is True and doc["violations"] == []
+    assert doc["messages"] == len(report.tree.messages) and doc["declared"] == len(report.tree.declared)
 
 
 def test_a_robot_run_is_a_task_tree_with_its_simulated_times(cli, capsys, tmp_path):
@@ -75,6 +81,14 @@ def test_the_ordered_pick_counterexample_breaks_sequential_achievement(cli, caps
     a, b = seq[0].messages[:2]
     assert report.tree.messages[a].kind == report.tree.messages[b].kind == "goal"
     assert f"SeqAch({a}, {b})" in out
+    # --json: the same violations as the library's report, and the same exit status
+    code, out, err = cli(capsys, "tca-check", trace, "--json")
+    assert code == 1, err
+    doc = json.loads(out)
+    assert doc["ok"] is False and doc["messages"] == len(report.tree.messages)
+    assert [(v["rule"], v["messages"]) for v in doc["violations"]] == \
+        [(v.rule, list(dict.fromkeys(v.messages))) for v in report.violations]
+    assert all(v["explanation"] and v["trace_lines"] for v in doc["violations"])
 
 
 def test_a_trace_without_task_tree_messages_is_an_error(cli, capsys, tmp_path):
