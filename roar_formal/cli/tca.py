@@ -80,6 +80,18 @@ def _countermodel_table(name: str, cm) -> Table:
     return table
 
 
+def _countermodel_reading(name: str, outcome) -> Text:
+    """What a countermodel shows, in a sentence: why a refutation is an answer."""
+    ob = outcome.obligation
+    cm = outcome.countermodel
+    at = f" at t = {cm.time}" if cm.time is not None else ""
+    ranks = " Only the order of the times matters (any times in that order would do)." if ob.order_only else ""
+    return Text(f"{name} is refuted, its claim does not follow from the axioms ({ob.statement}). The countermodel is "
+                f"a task tree that satisfies every axiom and the claim's hypotheses, but not its conclusion: each "
+                f"message is an element of the model (the claim's names for it in parentheses), with its kind and "
+                f"its intervals; the relations under the table are those that hold{at}.{ranks}")
+
+
 def register(app: typer.Typer) -> None:
     @app.command("prove")
     def prove_command(
@@ -117,6 +129,7 @@ def register(app: typer.Typer) -> None:
         console.print(table)
         for name, outcome in outcomes:
             if outcome.countermodel is not None and not outcome.obligation.is_consistency:
+                console.print(_countermodel_reading(name, outcome))
                 console.print(_countermodel_table(name, outcome.countermodel))
             if outcome.reason:
                 console.print(f"{name}: {outcome.reason}")

@@ -45,6 +45,8 @@ def test_prove_named_theorems_with_their_axioms(app):
     assert "proved" in result.output and "refuted" in result.output
     assert "l_desc_nesting" in result.output  # the uses column
     assert "countermodel for seq_ach_goals" in result.output and "m3" in result.output
+    # what a refutation shows is said before the table
+    assert "seq_ach_goals is refuted, its claim does not follow from the axioms" in " ".join(result.output.split())
 
 
 def test_prove_an_unknown_name_is_a_user_error(app):
