@@ -394,6 +394,14 @@ class Context:
             order += [t for t in pers if t not in lin and t not in aff]
         return order
 
+    def in_order(self) -> "Context":
+        """This context with every bag in the order re-adding its facts gives (the order a copy,
+        or a frozen context thawed, has): itself when it is so already, else a copy. Why: a removal
+        moves a bag's last item into the gap, so a context changed in place enumerates its
+        matches in another order than the same context frozen and thawed; the explorer keeps
+        every state in this order, so that freezing one never changes what it enumerates."""
+        return self if self._dirty is not None and not self._dirty else self.copy()
+
     def copy(self) -> "Context":
         """An independent copy whose bags are in the order re-adding the facts one by one
         (linear, then affine, then persistent) would give.

@@ -123,7 +123,7 @@ class ClfSystem:
 
     def build_successor(self, state: Context, succ: Successor, view) -> Context:
         """The state of a successor :meth:`lazy_successors` left unbuilt (its key kept on it)."""
-        nxt = build_planned(state, succ.step)
+        nxt = build_planned(state, succ.step).in_order()
         nxt._canon = (nxt.inert, len(nxt.inert), view._canon[2])
         return nxt
 
@@ -179,7 +179,7 @@ class ClfSystem:
 
     def _successor(self, state: Context, choice) -> Successor:
         nxt, step = self.program.successor(state, choice)
-        return Successor(choice.rule, self._group(choice), self._progress(choice.rule), nxt, step)
+        return Successor(choice.rule, self._group(choice), self._progress(choice.rule), nxt.in_order(), step)
 
     def reduced_successors(self, state: Context):
         """Successors by a stubborn subset of the enabled steps, a function giving the others

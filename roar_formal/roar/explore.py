@@ -249,7 +249,8 @@ class RoarSystem(ClfSystem):
         nxt, step = self.program.successor(state, choice)
         if self.pairs:
             self._monitor(state, nxt, step)
-        return Successor(choice.rule, self._group_of(state, choice), self._progress(choice.rule), nxt, step)
+        return Successor(choice.rule, self._group_of(state, choice), self._progress(choice.rule), nxt.in_order(),
+                         step)
 
     def _lazy_ok(self) -> bool:
         """Lazily built successors (see ClfSystem.lazy_successors) when no monitor reads them."""

@@ -142,11 +142,17 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
             out.append(Mark("started", m, starts[m][0], starts[m][1]))
         if m in ends:
             t_end = ends[m][0]
-            if m in starts and t_end <= starts[m][0]:
+            if m in starts and t_end == starts[m][0]:
                 # handled within one step (a constraint that already held): it ends within that
-                # step, before the next one (TCA's handling intervals are not empty)
+                # step, before the next one (TCA's handling intervals are not empty). An end
+                # before the start is kept as written: the axioms say what is wrong with it
                 t_end = starts[m][0] + (TICK / 2 if timed else Fraction(1, 2))
             out.append(Mark("ended", m, t_end, ends[m][1]))
+    # the end of a call the trace never started: kept, so that the task tree reports it (a
+    # message that was never sent) instead of dropping it
+    for m, (t, pos) in ends.items():
+        if m not in sent:
+            out.append(Mark("ended", m, t, pos))
     out += _seq_ach(header, by_emitter, file)
     out += [Declared("seq_ach", x, y, Pos(file, 1, 1)) for x, y in plans.declared if x in sent and y in sent]
     return out

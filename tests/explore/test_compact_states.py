@@ -83,6 +83,52 @@ def test_a_long_frontier_is_frozen_too_and_the_graph_does_not_change(monkeypatch
     assert len(waiting) > 3 and sum(isinstance(short.states.items[i], FrozenContext) for i in waiting) >= len(waiting) - 3
 
 
+FAN = """
+planner = ability {
+  context = { { } { bool done = false; } { } }
+  export = { { } { } { } }
+  tasks = { work = task { pre = { } post = { {done == true} } recipes = { r = recipe { pre = { } body = {
+    let h1 ensure(w1::done == true, 100);
+    let h2 ensure(w2::done == true, 100);
+    let h3 ensure(w3::done == true, 100);
+    wait(w1::done == true && w2::done == true && w3::done == true, 100);
+    abort h1; abort h2; abort h3;
+    set done true;
+  } } } } }
+}
+""" + "".join(f"""
+w{i} = ability {{
+  context = {{ {{ }} {{ bool done = false; }} {{ int tries = 0; }} }}
+  export = {{ {{ }} {{ bool op(); }} {{ }} }}
+  tasks = {{ work = task {{ pre = {{ }} post = {{ {{done == true}} }} recipes = {{ r = recipe {{ pre = {{ {{tries < 2}} }}
+    body = {{ set tries tries + 1; assert(op()); set done true; }} }} }} }} }}
+}}
+""" for i in (1, 2, 3))
+
+
+def test_a_wide_frontier_enumerates_alike_live_or_thawed(monkeypatch, tmp_path):
+    """Three workers interleaving: every state is built in the order thawing gives it
+    (``Context.in_order``), so a search that freezes its frontier almost at once numbers its
+    states and edges as one that keeps it live (before, removals reordered a live state's
+    bags and the two graphs differed from a few thousand states on)."""
+    import roar_formal.explore.search as search
+    spec = tmp_path / "fan.roar"
+    spec.write_text(FAN, encoding="utf-8")
+    graphs = []
+    for live in (10 ** 9, 2):
+        monkeypatch.setattr(search, "LIVE_FRONTIER", live)
+        ex = Explorer(with_big_stack(lambda: _system(spec, "planner::done == true")))
+        with_big_stack(lambda: ex.run(Budget(max_states=2000)))
+        graphs.append(_graph(ex))
+        if live == 2:
+            for sid in list(ex.frontier)[:40]:   # a frozen waiting state thaws to its live self's order
+                a = ex.states[sid]
+                b = FrozenContext(a).thaw()
+                assert [(c.rule, c.consumed) for c in ex.system.program.steps(a)] == \
+                       [(c.rule, c.consumed) for c in ex.system.program.steps(b)]
+    assert graphs[0] == graphs[1]
+
+
 def test_keys_are_exact_byte_strings():
     ex = with_big_stack(lambda: Explorer(_system(*SPECS[1])))
     with_big_stack(lambda: ex.run(Budget(max_states=500)))

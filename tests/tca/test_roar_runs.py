@@ -205,3 +205,48 @@ def test_a_sequencing_violation_names_the_commands_as_the_trace_does(cli, capsys
     (v,) = [v for v in report.violations if v.rule == "seq_ach"]
     assert "'press()' by jaw" in v.explanation and "'spin()' by drill" in v.explanation
 
+
+
+def _call_events(records: list, call: str) -> tuple[int, int]:
+    """The indices of the records holding the start and the end of a call."""
+    def has(i, kind):
+        ev = records[i].get("event")
+        evs = ev.get("events", []) if isinstance(ev, dict) and ev.get("kind") == "several" else [ev]
+        return any(isinstance(e, dict) and e.get("kind") == kind and e.get("call") == call for e in evs)
+    start = next(i for i in range(len(records)) if has(i, "primitive-start"))
+    end = next(i for i in range(len(records)) if has(i, "primitive-end"))
+    return start, end
+
+
+@pytest.mark.parametrize("edit", ["end before start", "no start"])
+def test_a_call_ending_before_it_starts_or_never_started_is_a_violation(cli, capsys, tmp_path, edit):
+    """A run trace edited so that a call ends before it starts (its end's step moved earlier), or
+    so that it never starts (the start event removed), used to pass: the end was moved to just
+    after the start, or dropped. Now the task tree reports it."""
+    trace = tmp_path / "run.jsonl"
+    spec = ROOT / "models" / "faulty" / "ordered_pick_fixed.roar"
+    fn = ROOT / "models" / "faulty" / "reliable_tools.py"
+    assert cli(capsys, "run", spec, "-r", "cell::done == true", "--functional", fn, "--trace", trace)[0] == 0
+    lines = trace.read_text(encoding="utf-8").splitlines()
+    header, records = json.loads(lines[0]), [json.loads(x) for x in lines[1:]]
+    assert check_trace(trace).ok
+    start, end = _call_events(records, "C1")
+    assert start < end
+    if edit == "end before start":
+        records[end]["step"], records[start]["step"] = records[start]["step"], records[end]["step"]
+        records[start], records[end] = records[end], records[start]
+    else:
+        ev = records[start]["event"]
+        records[start]["event"] = None if ev.get("kind") != "several" else \
+            {**ev, "events": [e for e in ev["events"] if e.get("kind") != "primitive-start"]}
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text("\n".join(json.dumps(x) for x in [header, *records]) + "\n", encoding="utf-8")
+    report = check_trace(bad)
+    assert not report.ok
+    text = " ".join(v.explanation for v in report.violations)
+    if edit == "end before start":
+        assert "start(C1) < end(C1) is false" in text, text
+    else:
+        assert "'ended' for message C1, which was never sent" in text, text
+    code, _out, _err = cli(capsys, "tca-check", bad)
+    assert code == 1
