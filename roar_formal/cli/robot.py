@@ -138,12 +138,10 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     """``roar-verify replay`` for robot traces (``--model SPEC``) and for counterexamples on the robot
     (``--on-robot SCENARIO``). Returns the exit status. Only the spec named on the command line is
     compiled and only its functional-layer module is imported: nothing the trace names is run."""
-    from ..roar.sources import spec_files
     from ..robot.setup import prepare, split_faults
     from rich.text import Text
-    from ..roar.compile import compile_spec
     from ..trace.format import read_trace
-    from ..robot.report import TRACE_KIND, sources_fingerprint
+    from ..robot.report import TRACE_KIND
 
     header, records = read_trace(trace)
     console = _console()
@@ -188,22 +186,15 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     if header.get("kind") != TRACE_KIND:
         raise RoarError(f"{trace}: not a robot trace (kind {header.get('kind')!r}); a counterexample replays on the "
                         f"engine with --model alone, or on the robot with --on-robot SCENARIO --model SPEC")
-    from ..roar.spec import load_spec
-    from ..robot.binding import load_robot_binding
-    from ..robot.conform import replay_on_model
-    spec_ast = load_spec(model)
-    mine = sources_fingerprint(spec_files(spec_ast))
-    theirs = header.get("spec_fingerprint")
-    if theirs and theirs != mine and not force:
-        raise RoarError(f"{trace}: the trace was made from other sources than {model} (its fingerprint differs): "
-                        f"it is stale; simulate again, or pass --force to replay it anyway")
-    binding = load_robot_binding(model, functional)
-    abstract = compile_spec(spec_ast, request, registry=binding.abstract or binding.robot, functional="abstract")
-    rp = replay_on_model(abstract, binding.robot, records)
+    from ..robot.conform import replay_robot_trace
+    rp, confirmed, why = replay_robot_trace(trace, header, records, model, functional, force)
     if rp.ok:
         console.print(Text(f"replayed {rp.steps} robot steps on the model of {model}: every step is a step of the "
                            f"model, and each of the {len(rp.outcomes)} functional-layer answers falls into a "
                            f"declared outcome", style="green"), soft_wrap=True)
+        if confirmed is False:
+            console.print(Text(f"NOT CONFIRMED: {why}", style="bold red"), soft_wrap=True)
+            return 1
         return 0
     for line in rp.divergence.lines():
         console.print(Text(line, style="red" if line.startswith("step") else ""), soft_wrap=True)

@@ -63,7 +63,23 @@ class ModelReplay:
     steps: int                       # robot steps replayed
     divergence: Optional[Divergence]
     outcomes: list                   # (step, function, outcome) of every functional-layer answer
-    approximate: int = 0             # steps matched by rule name with different values
+    approximate: int = 0             # steps matched by rule name with different values (none: such a
+                                     # step is a divergence)
+    final: object = None             # the model's state after the last step (when it replayed)
+
+    def ended(self) -> Optional[str]:
+        """How the outside request (R0) ends in the replayed model state: a final state's name
+        (success, failure, ...), or "unfinished"; None when it did not replay."""
+        if self.final is None:
+            return None
+        from ..roar import vocabulary as V
+        from ..roar.run import STATE_NAMES
+        top = {V.rq(f).request for _m, f, _n in self.final.facts()
+               if type(f) is Root and f.head.name == V.RQ and show(V.rq(f).emitter) == "itop"}
+        for _m, f, _n in self.final.facts():
+            if type(f) is Root and f.head.name == V.RS and V.rs(f).request in top:
+                return STATE_NAMES.get(V.rs(f).state.head.name, "?")
+        return "unfinished"
 
     @property
     def ok(self) -> bool:
@@ -81,6 +97,43 @@ def _shape(text: str) -> str:
 def _printed(step) -> tuple[list, list]:
     return ([show(f) for _m, f in step.consumed if type(f) is Root],
             [show(f) for _m, f in step.produced if type(f) is Root])
+
+
+_RETURN = re.compile(r"^return (.+) \S+$")
+
+
+def _returned(facts: list) -> list[str]:
+    """The values of the ``return V D`` facts among printed facts, in order."""
+    return [m.group(1) for m in map(_RETURN.match, facts) if m]
+
+
+def _abstracted(fact: str, stands_for: dict) -> str:
+    """A printed fact of the trace with each value the robot answered written as the outcome
+    that stands for it wrote it (compound values only: a bare constant is too common to swap)."""
+    for robot_v, model_v in stands_for.items():
+        fact = fact.replace(robot_v, model_v)
+    return fact
+
+
+def _differing(want: tuple, got: tuple) -> tuple[list, list]:
+    """The consumed and produced facts of two printed steps that the other lacks (fresh names
+    compared by their hint: each side numbers its own), as lines for a divergence."""
+    robot, model = [], []
+    for label, w, g in (("consumed", want[0], got[0]), ("produced", want[1], got[1])):
+        gs = [_FRESH.sub("#", x) for x in g]
+        ws = [_FRESH.sub("#", x) for x in w]
+        for x, xs in zip(w, ws):
+            if xs in gs:
+                gs.remove(xs)
+            else:
+                robot.append(f"{label}: {x}")
+        ws = [_FRESH.sub("#", x) for x in w]
+        for x, xs in zip(g, [_FRESH.sub("#", y) for y in g]):
+            if xs in ws:
+                ws.remove(xs)
+            else:
+                model.append(f"{label}: {x}")
+    return robot, model
 
 
 def _score(want: tuple, got: tuple) -> tuple[int, int]:
@@ -149,6 +202,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
     outcomes = []
     approx = 0
     n = 0
+    stands_for: dict = {}   # a value the robot answered (printed) -> the outcome's value for it
     for rec in records:
         n += 1
         rule = rec.get("rule")
@@ -193,6 +247,12 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                     outcomes, approx)
             best = best_match(cands, state, prog, want, by_pending=True)
             outcomes.append((n, fname, _oname(best[0].rule, fc)))
+            # the value the robot answered and the one the outcome stands for it with: in the
+            # steps after, the trace's facts hold the first where the model's hold the second
+            _nxt, step = prog.successor(state, best[0])
+            for robot_v, model_v in zip(_returned(want[1]), _returned(_printed(step)[1])):
+                if robot_v != model_v and robot_v.startswith("("):
+                    stands_for[robot_v] = model_v
             state = best[1]
             continue
         cands = [c for c in choices if c.rule == rule]
@@ -203,10 +263,53 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                 [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing (quiescent)'}"]),
                 outcomes, approx)
         choice, nxt, exact = best_match(cands, state, prog, want)
+        if not exact and stands_for:
+            # the same up to the values the outcomes abstract (a position read as "moving")
+            choice, nxt, exact = best_match(cands, state, prog, tuple([_abstracted(x, stands_for) for x in w]
+                                                                       for w in want))
         if not exact:
-            approx += 1
+            # the model takes this rule here, but not on the facts the trace records (a value, a
+            # name or a fact edited, or a trace of another request): not a step of the model
+            _nxt, step = prog.successor(state, choice)
+            robot_only, model_only = _differing(want, _printed(step))
+            return ModelReplay(n, Divergence(
+                int(rec.get("step", n)), str(rule), "the model takes this rule on other facts than the trace records "
+                "(the facts both have are left out)", robot_only, model_only), outcomes, approx)
         state = nxt
-    return ModelReplay(n, None, outcomes, approx)
+    return ModelReplay(n, None, outcomes, approx, state)
+
+
+def replay_robot_trace(trace, header: dict, records: list, model, functional=None, force: bool = False) \
+        -> tuple[ModelReplay, Optional[bool], str]:
+    """A robot run's trace (``simulate --trace``) replayed on the abstract model of ``model`` (a
+    spec): the replay, whether the trace's recorded outcome is how the request ends on the model
+    (None when the trace records none or the replay stopped), and why not. A trace made from other
+    sources than the spec's is refused unless ``force``."""
+    from ..roar.compile import compile_spec
+    from ..roar.sources import spec_files
+    from ..roar.spec import load_spec
+    from .binding import load_robot_binding
+    from .report import sources_fingerprint
+    spec_ast = load_spec(model)
+    mine = sources_fingerprint(spec_files(spec_ast))
+    theirs = header.get("spec_fingerprint")
+    if theirs and theirs != mine and not force:
+        raise RoarError(f"{trace}: the trace was made from other sources than {model} (its fingerprint differs): "
+                        f"it is stale; simulate again, or pass --force to replay it anyway")
+    request = header.get("request")
+    if not isinstance(request, str):
+        raise RoarError(f"{trace}: the trace's header names no request (\"request\": \"...\")", Pos(str(trace), 1, 1))
+    check_records(records, str(trace))
+    binding = load_robot_binding(model, functional)
+    abstract = compile_spec(spec_ast, request, registry=binding.abstract or binding.robot, functional="abstract")
+    rp = replay_on_model(abstract, binding.robot, records)
+    recorded, ended = header.get("outcome"), rp.ended()
+    if not isinstance(recorded, str) or ended is None:
+        return rp, None, ""
+    if recorded != ended:
+        return rp, False, (f"the trace records that its request ended in {recorded}, but on the model it ends "
+                           f"{'in ' + ended if ended != 'unfinished' else ended}")
+    return rp, True, f"the request ends in {ended}, as the trace records"
 
 
 def _oname(rule: str, fc: str) -> str:

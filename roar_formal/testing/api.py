@@ -30,7 +30,7 @@ import re
 import shutil
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping, Optional, Sequence, Union
 
@@ -1208,14 +1208,46 @@ def replay(trace: PathLike, model: Optional[PathLike] = None, *, functional: Opt
     trace's own is never opened), as ``roar-verify replay`` does. A step the model cannot take, or a
     trace of another version of the spec (unless ``force``), is a :class:`RoarError`."""
     from ..clf.query import with_big_stack
+    from ..trace.format import read_trace
     from ..verify.replay import replay_trace
+    if isinstance(model, (AgentSpec, ClfModel)):   # a loaded spec or program: its file
+        if functional is None and isinstance(model, AgentSpec):
+            functional = model.functional
+        model = model._file() if isinstance(model, AgentSpec) else model.path
     if model is None and not _from_cli:
-        from ..trace.format import read_trace
         from ..verify.replay import need_model
         raise need_model(trace, read_trace(trace)[0], "name it: replay(trace, model), with a ROAR spec (whose "
                          "functional-layer module next to it is used) or a .clf file")
+    header, records = read_trace(trace)
+    from ..robot.report import TRACE_KIND
+    if header.get("kind") == TRACE_KIND and model is not None:
+        return _replay_robot_run(Path(trace), header, records, model, functional, force)
     rep = with_big_stack(lambda: replay_trace(trace, model, functional=functional, force=force))
     return Replay(Path(trace), rep)
+
+
+def _replay_robot_run(trace: Path, header: dict, records: list, model, functional, force: bool) -> "RobotReplay":
+    """A robot run's trace on the abstract model, as ``roar-verify replay TRACE --model SPEC``."""
+    from ..clf.query import with_big_stack
+    from ..robot.conform import replay_robot_trace
+    rp, confirmed, why = with_big_stack(lambda: replay_robot_trace(trace, header, records, model, functional, force))
+    if not rp.ok:
+        raise RoarError(f"{trace}: the robot's run is not a run of the model of {model}", None,
+                        rp.divergence.lines())
+    return RobotReplay(trace, rp.steps, list(rp.outcomes), confirmed, why)
+
+
+@dataclass
+class RobotReplay:
+    """A robot run's trace replayed on the abstract model: every step a step of the model, each
+    functional-layer answer in a declared outcome (``outcomes``: (step, function, outcome)), and
+    whether the request ends as the trace records (``confirmed``; None when it records nothing)."""
+
+    trace: Path
+    steps: int
+    outcomes: list = field(repr=False)
+    confirmed: Optional[bool] = None
+    confirmation: str = ""
 
 
 @dataclass

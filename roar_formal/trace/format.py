@@ -130,6 +130,11 @@ def write_trace(path: str | Path, header: dict, steps: Iterable[dict]) -> None:
     write_atomic(path, "\n".join(lines) + "\n")
 
 
+#: the kinds of trace the project writes, whose steps are numbered in the order they were taken
+#: (a hand-written TCA event trace may interleave its events' numbers with others')
+NUMBERED_KINDS = ("roar-run", "roar-robot-run", "counterexample")
+
+
 def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
     """Read a trace; malformed lines are errors with their line number."""
     path = Path(path)
@@ -162,6 +167,14 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
             continue
         if "step" not in rec:
             raise RoarError("expected a step record with a \"step\" field", Pos(str(path), n, 1))
+        k = rec["step"]
+        if (header.get("kind") in NUMBERED_KINDS and type(k) is int and steps and type(steps[-1]["step"]) is int
+                and k <= steps[-1]["step"]):
+            # the steps of a run or a counterexample are numbered in the order they were taken: a
+            # trace with two steps swapped or renumbered is not the run it claims to be, even where
+            # the swapped order would be another run of the model
+            raise RoarError(f"step {k} comes after step {steps[-1]['step']}: the steps of a trace are numbered "
+                            "in increasing order (the order they were taken)", Pos(str(path), n, 1))
         steps.append(rec)
     if header is None:
         raise RoarError(f"{path} is empty: expected a roar-formal trace")

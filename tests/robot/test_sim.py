@@ -327,6 +327,58 @@ def test_a_robot_step_the_model_does_not_allow_is_rejected_with_both_sides(tmp_p
     assert rp.divergence.robot and any("enabled here" in x for x in rp.divergence.model)
 
 
+def test_a_robot_trace_with_an_edited_fact_or_request_is_rejected_at_that_step(tmp_path):
+    """The model's step is matched on the facts the trace records, not on the rule name alone: a
+    value edited in one step, or a trace of another request, diverge there (they used to replay,
+    the differences counted and never shown). A value the robot answered and an outcome stands
+    for (mana_nav's, spa_loop's: other tests) is still read as the outcome's."""
+    res, path = _door_trace(tmp_path)
+    header, steps = read_trace(path)
+    model, binding = abstract_model("door_nav.roar", DOOR_REQ, "door.toml")
+    assert replay_on_model(model, binding.robot, steps).ok
+    k = next(i for i, s in enumerate(steps) if any("(vnum 9)" in f for f in s.get("consumed", [])))
+    edited = json.loads(json.dumps(steps))
+    edited[k]["consumed"] = [f.replace("(vnum 9)", "(vnum 7)") for f in edited[k]["consumed"]]
+    rp = replay_on_model(model, binding.robot, edited)
+    assert not rp.ok and rp.divergence.step == steps[k]["step"]
+    assert "other facts than the trace records" in rp.divergence.reason
+    assert any("(vnum 7)" in x for x in rp.divergence.robot) and any("(vnum 9)" in x for x in rp.divergence.model)
+    assert not any("(vnum 7)" in x for x in rp.divergence.model)   # only the facts that differ are shown
+    # the same trace replayed on the model of another request (goal x = 4): the first step that
+    # reads the goal diverges
+    other, _ = abstract_model("door_nav.roar", DOOR_REQ.replace("9.0", "4.0"), "door.toml")
+    rp = replay_on_model(other, binding.robot, steps)
+    assert not rp.ok and "other facts" in rp.divergence.reason
+
+
+def test_a_robot_traces_recorded_outcome_is_confirmed(tmp_path, capsys):
+    """replay says NOT CONFIRMED (exit 1) when the header's outcome is not how the request ends
+    on the model (it said nothing); and steps out of order are refused when the trace is read."""
+    from roar_formal.cli import main
+    _res, path = _door_trace(tmp_path)
+    header, steps = read_trace(path)
+
+    def replay(p):
+        try:
+            main(["replay", str(p), "--model", str(MODELS / "door_nav.roar")])
+            return 0, capsys.readouterr()
+        except SystemExit as exc:
+            return exc.code, capsys.readouterr()
+    code, out = replay(path)
+    assert code == 0 and "NOT CONFIRMED" not in out.out, out
+    assert header["outcome"] == "success"
+    bad = tmp_path / "bad.jsonl"
+    _rewrite(path, steps, {**header, "outcome": "failure"}, bad)
+    code, out = replay(bad)
+    assert code == 1 and "NOT CONFIRMED: the trace records that its request ended in failure, but on the model " \
+                          "it ends in success" in " ".join(out.out.split())
+    swapped = list(steps)
+    swapped[30], swapped[31] = swapped[31], swapped[30]
+    _rewrite(path, swapped, header, bad)
+    code, out = replay(bad)
+    assert code == 2 and f"step {steps[30]['step']} comes after step {steps[31]['step']}" in out.err
+
+
 # ---------------------------------------------------------------- a counterexample on the robot
 
 
