@@ -104,6 +104,7 @@ class _Scope:
     locals: dict = field(default_factory=dict)  # name -> (type, kind 'let'|'handle', pos)
     logic: bool = False  # capitalised unknown names are logic variables (rules)
     last_error: bool = False  # last_error?(...) allowed (recipe pre-conditions)
+    aborted: dict = field(default_factory=dict)  # handle -> where this block aborts it
 
     @property
     def name(self) -> Optional[str]:
@@ -377,6 +378,13 @@ class _Checker:
             elif bound[1] != "handle":
                 self.err("abort", s.pos, f"abort {s.handle}: '{s.handle}' is bound by let to a value; abort "
                                          f"takes a name bound by 'let {s.handle} ensure(...)'")
+            elif s.handle in sc.aborted:
+                # the request is released by the first abort: a second one would wait for a request
+                # the activation no longer owns (the recipe would stop there for good)
+                self.err("abort", s.pos, f"abort {s.handle}: '{s.handle}' is aborted already at "
+                                         f"{_at(sc.aborted[s.handle], s.pos)}; a handle is aborted once")
+            else:
+                sc.aborted[s.handle] = s.pos
         elif isinstance(s, a.ExprStmt):
             self.ty(s.expr, sc)
 

@@ -24,6 +24,8 @@ position of the spec that uses it, in one :class:`BindingError`.
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import inspect
 import re
 import time
@@ -399,6 +401,13 @@ def _check_primitive(spec: a.Spec, prim: Primitive, owner: Optional[str],
             errors.append(RoarError(
                 f"the callable bound to '{prim.name}' takes {takes} argument{'s' if high != 1 else ''}, "
                 f"but agent '{owner}' declares '{decl.name}' with {k}", decl.pos))
+    if decl is not None:
+        ty = decl.result.name
+        for o in prim.outcomes:
+            if o.result is not None and not value_fits(o.result, ty):
+                errors.append(RoarError(
+                    f"outcome '{o.name}' of primitive '{prim.name}' returns {o.result!r}, but "
+                    f"'{decl.name}' is declared to return {ty}{_wanted(ty)}", decl.pos))
     if owner is not None:
         errors += _check_writes(spec, prim, owner, decl.pos if decl else None)
     return errors
@@ -407,7 +416,7 @@ def _check_primitive(spec: a.Spec, prim: Primitive, owner: Optional[str],
 def _check_writes(spec: a.Spec, prim: Primitive, owner: str, pos: Optional[Pos]) -> list[RoarError]:
     errors = []
     for o in prim.outcomes:
-        for var in o.writes:
+        for var, value in o.writes.items():
             agent, _, name = var.rpartition("::")
             agent = agent or owner
             ag = spec.agent(agent)
@@ -415,7 +424,37 @@ def _check_writes(spec: a.Spec, prim: Primitive, owner: str, pos: Optional[Pos])
                 errors.append(RoarError(
                     f"outcome '{o.name}' of primitive '{prim.name}' writes '{var}', which is not a "
                     f"variable of agent '{agent}'", pos))
+                continue
+            ty = ag.var(name).type.name
+            if not value_fits(value, ty):
+                errors.append(RoarError(
+                    f"outcome '{o.name}' of primitive '{prim.name}' writes {value!r} to '{var}', which is "
+                    f"{ty}{_wanted(ty)}", pos))
     return errors
+
+
+#: the spec's base types a Python value is checked against (others, structs and newtypes, are not)
+_PY_TYPES = {"bool": "true or false (a Python bool)", "int": "a whole number (a Python int)",
+             "double": "a number (a Python int or float)", "string": "a Python str"}
+
+
+def value_fits(value, ty: Optional[str]) -> bool:
+    """May a Python value stand for a value of the spec's type ``ty``? Only base types are judged
+    (a struct, a newtype or an opaque type: yes)."""
+    if ty == "bool":
+        return isinstance(value, bool)
+    if ty == "int":
+        return isinstance(value, int) and not isinstance(value, bool) or (
+            isinstance(value, Fraction) and value.denominator == 1)
+    if ty == "double":
+        return isinstance(value, (int, float, Fraction)) and not isinstance(value, bool)
+    if ty == "string":
+        return isinstance(value, str)
+    return True
+
+
+def _wanted(ty: str) -> str:
+    return f": expected {_PY_TYPES[ty]}" if ty in _PY_TYPES else ""
 
 
 def _arity(fn: Callable) -> Optional[tuple[int, Optional[int]]]:

@@ -30,7 +30,7 @@ from .compile import CRASH_RULES, CompiledModel, Crashes, num_lit
 
 #: the clock's rule in a timed model (docs/semantics.md, Time): a run takes it when nothing else can happen
 TICK_RULE = "tick"
-from .functional import Outcome, Registry
+from .functional import Outcome, Registry, value_fits
 from . import vocabulary as V
 from .pretty import string_literal
 
@@ -283,6 +283,8 @@ class Resolver:
                 raise primitive_error(self.model, fc, prim, py, exc) from None
             if rty is None or v is None and rty != "bool":
                 return const("vunit"), "done", {}
+            if not value_fits(v, rty):
+                raise primitive_result_error(self.model, fc, prim, py, v, rty)
             return self.values.term(v, rty), "returned", {}
         o = next((o for o in outcomes if o.success), outcomes[0] if outcomes else Outcome("success", True))
         return self.outcome_term(o, rty), o.name, o.writes
@@ -313,6 +315,16 @@ def primitive_error(model: CompiledModel, fc: str, prim, args: list, exc: BaseEx
         notes.append("a primitive reports a failure by returning false or through its declared outcomes; "
                      "an exception is a bug of the functional layer")
     return RoarError(f"primitive '{qual}' raised {type(exc).__name__}: {exc}", sites[0] if sites else None, notes)
+
+
+def primitive_result_error(model: CompiledModel, fc: str, prim, args: list, value, rty: str) -> RoarError:
+    """A primitive that returned a value of another type than its declaration's: a located error
+    (a bug of the functional layer; read as it is, the value would stop the recipe that reads it)."""
+    owner, name = model.functions.get(fc, (None, prim.name))
+    qual = f"{owner}::{name}" if owner else name
+    sites = model.call_sites.get(fc, [])
+    return RoarError(f"primitive '{qual}' returned {value!r}, but it is declared to return {rty}", sites[0] if sites
+                     else None, [f"called as {name}({', '.join(map(repr, args))})"])
 
 
 def _default(rty, model):

@@ -124,6 +124,54 @@ def test_resolve_binds_and_checks():
     assert set(binding.variables) == {"a::pos"}
 
 
+@pytest.mark.parametrize("outcomes, helper_outcomes, message", [
+    ([Outcome("near", True, {"n": True})], None,
+     "outcome 'near' of primitive 'a::dist' writes True to 'n', which is int: expected a whole number"),
+    ([Outcome("near", True, {"n": 2.5})], None,
+     "outcome 'near' of primitive 'a::dist' writes 2.5 to 'n', which is int"),
+    ([Outcome("near", True, result="close")], None,
+     "outcome 'near' of primitive 'a::dist' returns 'close', but 'dist' is declared to return double"),
+    (None, [Outcome("yes", True, result=7)],
+     "outcome 'yes' of primitive 'helper' returns 7, but 'helper' is declared to return bool: expected true or "
+     "false"),
+])
+def test_resolve_checks_the_types_of_outcome_values(outcomes, helper_outcomes, message):
+    """An outcome's result or writes of another type than the spec declares is an error at the
+    declaration (it was read as it was, and the recipe reading it stopped: a false deadlock)."""
+    spec = parse_roar(SPEC, "s.roar")
+    reg = Registry()
+    reg.register("count", lambda: 3)
+    reg.register("a::dist", lambda p, q: 0.0, outcomes=outcomes or [Outcome("near", True, {"n": 1}, result=0.5)])
+    reg.register("helper", lambda x: True, outcomes=helper_outcomes)
+    with pytest.raises(BindingError) as info:
+        reg.resolve(spec)
+    assert [e.message for e in info.value.errors][0].startswith(message)
+
+
+def test_a_callable_returning_another_type_stops_the_run_located(tmp_path):
+    """run: a callable returning 7 for a bool function is a located error naming the call (it was
+    read as a number, and the wait reading it never woke)."""
+    from roar_formal import load_spec as api_load
+    spec = tmp_path / "plug.roar"
+    spec.write_text("""
+base = ability {
+  context = { { } { bool charging = false; } { } }
+  export = { { } { bool plug(); } { } }
+  tasks = { charge = task { post = { {charging == true} }
+    recipes = { r = recipe { body = { assert(plug()); set charging true; } } } } }
+}
+""", encoding="utf-8")
+    (tmp_path / "plug.py").write_text(
+        "from roar_formal.roar.functional import Registry\n"
+        "def registry():\n    reg = Registry()\n    reg.register('plug', lambda: 7)\n    return reg\n",
+        encoding="utf-8")
+    with pytest.raises(RoarError) as info:
+        api_load(spec).run("base::charging == true")
+    err = info.value
+    assert err.message == "primitive 'base::plug' returned 7, but it is declared to return bool"
+    assert (err.pos.file, err.pos.line) == (str(spec), 6)
+
+
 def test_resolve_checks_arity_of_callables():
     spec = parse_roar(SPEC, "s.roar")
     reg = Registry()
