@@ -74,6 +74,10 @@ def search_rounds(job: Job, t0: float, explorer, decide):
         remaining = None
         if job.budget.max_seconds is not None:
             remaining = max(0.0, job.budget.max_seconds - (time.perf_counter() - t0))
+            # a resumed search counts its time over every round (``elapsed``): its bound is what it
+            # has spent so far plus what the job has left (without this, a round stopped when its
+            # whole search time reached what was left, well before the job's bound)
+            remaining += getattr(explorer, "elapsed", 0.0)
         graph = verdicts = None  # a restarting backend (ground) gives the last round's memory back first
         graph = explorer.run(Budget(max_states=k, max_seconds=remaining, max_memory_mb=job.budget.max_memory_mb))
         stated_time(job, graph)
