@@ -542,6 +542,15 @@ def _name_pos(path: Path, key: str, name: str, nth: int = 1) -> Pos:
     return _value_pos(path, key)
 
 
+def _named_file(base: Path, name: str, job: Path, key: str, what: str) -> Path:
+    """The file a job names under ``key``, resolved against the job's folder; one that does not
+    exist is an error at the job file's line and column that name it."""
+    p = (base / name).resolve()
+    if not p.exists():
+        raise RoarError(f"{key} = \"{name}\": no such {what} ({p})", _string_pos(job, key, name))
+    return p
+
+
 def load_job(path: str | Path) -> Job:
     path = Path(path)
     d = _load_toml(path)
@@ -558,12 +567,13 @@ def load_job(path: str | Path) -> Job:
         if "request" not in d:
             raise RoarError("a job on a spec needs 'request = \"agent::var == value ...\"'",
                             Pos(str(path), _line_of(path, "spec"), 1))
-        spec = (base / _typed(d, "spec", str, path, "a job file")).resolve()
+        spec = _named_file(base, _typed(d, "spec", str, path, "a job file"), path, "spec", "spec")
         job = Job(path=path, name=str(d.get("name", path.stem)), model=None, spec=spec,
                   request=_typed(d, "request", str, path, "a job file"))
         job.request_at = _string_pos(path, "request", job.request)
         if "functional" in d:
-            job.functional = (base / _typed(d, "functional", str, path, "a job file")).resolve()
+            job.functional = _named_file(base, _typed(d, "functional", str, path, "a job file"), path, "functional",
+                                         "functional-layer module")
         if "robot" in d:
             job.robot = _robot_setup(d, path, base)
         if "faults" in d:
@@ -587,7 +597,7 @@ def load_job(path: str | Path) -> Job:
             if k in d:
                 raise RoarError(f"'{k}' belongs to a job on a spec ('spec = ...'), not on a .clf model",
                                 Pos(str(path), _line_of(path, k), 1))
-        model = (base / _typed(d, "model", str, path, "a job file")).resolve()
+        model = _named_file(base, _typed(d, "model", str, path, "a job file"), path, "model", "model")
         job = Job(path=path, name=str(d.get("name", path.stem)), model=model)
     if "start" in d:
         job.start = _typed(d, "start", int, path, "a job file")
@@ -602,7 +612,7 @@ def load_job(path: str | Path) -> Job:
         if not isinstance(p, str) or "\0" in p:
             raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
                             Pos(str(path), _line_of(path, "properties"), 1))
-        load_properties((base / p).resolve(), job.props)
+        load_properties(_named_file(base, p, path, "properties", "property file"), job.props)
     for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs", "swarm", "distributed")),
                          ("visited", ("exact", "hash", "bitstate"))):
         if key in d:

@@ -162,10 +162,14 @@ deadlock = "holds"
     ('model = "m.clf"\nbackend = "fast"\n[expect]\ndeadlock = "holds"\n', ":2:1", "'backend' must be one of"),
     ('model = "m.clf\n', ":1:", "invalid TOML"),
     ('model = "m.clf"\n', ":1:1", "the job checks nothing"),
+    ('model = "nope.clf"\n', ":1:10", 'model = "nope.clf": no such model'),
+    ('spec = "nope.roar"\nrequest = "a::b == true"\n', ":1:9", 'spec = "nope.roar": no such spec'),
+    ('model = "m.clf"\nproperties = ["none.toml"]\n', ":2:16", 'properties = "none.toml": no such property'),
     # found by fuzzing: a NUL in a path crashed the path library
     ('name = "x"\nspec = "a\\u0000b.roar"\nrequest = "a::b == true"\n', ":2:1", "holds a NUL character"),
 ])
 def test_malformed_job_files_are_located_errors(tmp_path, capsys, text, where, msg):
+    write(tmp_path, "m.clf", "a : type.\n")   # the model the jobs name exists: the error is the one tested
     job = write(tmp_path, "bad.toml", text)
     with pytest.raises(SystemExit) as e:
         main(["check", str(job)])
