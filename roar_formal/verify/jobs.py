@@ -133,10 +133,20 @@ def _load_toml(path: Path) -> dict:
         raise toml_limit_error(exc, text, str(path)) from None
 
 
+#: the keys and tables of a property file (docs/checking.md)
+PROPERTY_KEYS = {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant",
+                 "robot-invariant", "temporal", "incompatible-tasks"}
+
+
 def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
     for k in d:
         if k not in allowed:
-            raise RoarError(f"unknown key '{k}' in {where}; expected one of: {', '.join(sorted(allowed))}",
+            hint = ""
+            if where == "a job file" and k in PROPERTY_KEYS:
+                hint = (f" ('{k}' belongs in a property file, which the job names with properties = "
+                        f"[\"file.toml\"]" + ("; this file looks like one: a folder of jobs should not hold it"
+                                               if "check" in d else "") + ")")
+            raise RoarError(f"unknown key '{k}' in {where}{hint}; expected one of: {', '.join(sorted(allowed))}",
                             Pos(str(path), _line_of(path, k), 1))
 
 
@@ -205,8 +215,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
     spec = into or PropertySpec()
     d = _load_toml(path)
     from ..roar.props import did_you_mean, looks_like_spec, parse_formula
-    _expect_keys(d, {"description", "check", "livelock", "deadlock", "sequential-achievement", "invariant",
-                     "robot-invariant", "temporal", "incompatible-tasks"}, "a property file", path)
+    _expect_keys(d, PROPERTY_KEYS, "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
