@@ -163,6 +163,8 @@ deadlock = "holds"
     ('model = "m.clf\n', ":1:", "invalid TOML"),
     ('model = "m.clf"\n', ":1:1", "the job checks nothing"),
     ('model = "nope.clf"\n', ":1:10", 'model = "nope.clf": no such model'),
+    ('model = "m.clf"\n[invariant]\nnever = ["a"]\n', ":2:1", "'invariant' belongs in a property file"),
+    ('check = ["deadlock"]\n', ":1:1", "this file looks like one: a folder of jobs should not hold it"),
     ('spec = "nope.roar"\nrequest = "a::b == true"\n', ":1:9", 'spec = "nope.roar": no such spec'),
     ('model = "m.clf"\nproperties = ["none.toml"]\n', ":2:16", 'properties = "none.toml": no such property'),
     # found by fuzzing: a NUL in a path crashed the path library
