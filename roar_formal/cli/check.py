@@ -110,7 +110,9 @@ def register(app: typer.Typer) -> None:
                                   f"{st['memory_mb']:,.0f} MiB, {_time.monotonic() - status['began']:,.0f} s")
                 if console.is_terminal:
                     live.update(status["text"])
-                elif _time.monotonic() - status["plain_at"] >= 5.0:   # CI logs: a plain line every 5 s
+                elif _time.monotonic() - status["plain_at"] >= max(5.0, 0.2 * (_time.monotonic() - status["began"])):
+                    # a log (not a terminal): a plain line every 5 s, then further apart as the search
+                    # goes on (a fifth of the time so far), so a long search writes tens of lines
                     status["plain_at"] = _time.monotonic()
                     console.print(status["text"], soft_wrap=True)
 
