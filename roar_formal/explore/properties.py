@@ -53,8 +53,9 @@ class Verdict:
 
 
 def incomplete_note(prop: str, g: StateGraph) -> Verdict:
+    what = prop if prop in ("deadlock", "livelock") else f"violation of {prop}"   # not "no invariant"
     return Verdict(prop, "incomplete",
-                   f"no {prop} in {g.n_states:,} states; search incomplete ({g.stop_reason})")
+                   f"no {what} in {g.n_states:,} states; search incomplete ({g.stop_reason})")
 
 
 # ---------------------------------------------------------------- state properties
