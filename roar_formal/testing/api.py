@@ -609,6 +609,24 @@ def _string_pos(pos: Pos, text: str) -> Pos:
     return Pos(pos.file, pos.line, col + 1) if col >= 0 else pos
 
 
+def variable_value(model: "CompiledModel", state, var: str, where: str) -> object:
+    """The value of the spec variable ``agent::var`` in a state of its compiled model (numbers as
+    int or Fraction); ``where`` names the spec in errors."""
+    from ..clf.terms import Const
+    from ..roar import vocabulary as V
+    from ..roar.run import value_of
+    agent, _, name = var.partition("::")
+    cell = f"v_{agent}_{name}"
+    if not name or cell not in model.cells:
+        raise RoarError(f"no variable {var!r} in {where} (write 'agent::var')")
+    bag = state.index.get(Const(V.CONTAINS)) if hasattr(state, "index") else None
+    items = bag.items if bag else [f for _m, f, _n in state.facts() if getattr(f.head, "name", None) == V.CONTAINS]
+    for c in map(V.contains, items):
+        if c.cell.head.name == cell:
+            return value_of(c.value)
+    raise RoarError(f"{var} holds no value in this state")
+
+
 def _request_at(request) -> Optional[Pos]:
     """Where a request given as text is written in the caller's code (its line, the column inside
     the quotes when the text is on that line), so that an error in it is reported there."""

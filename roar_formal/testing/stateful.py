@@ -57,7 +57,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
 from ..errors import Pos, RoarError
-from .api import AgentSpec, load_spec, split_never
+from .api import AgentSpec, load_spec, split_never, variable_value
 
 __all__ = ["RoarMachine"]
 
@@ -395,18 +395,7 @@ class RoarMachine(RuleBasedStateMachine):
 
     def value(self, var: str) -> object:
         """The current value of ``agent::var`` (numbers as int or Fraction)."""
-        from ..clf.terms import Const
-        from ..roar import vocabulary as V
-        from ..roar.run import value_of
-        agent, _, name = var.partition("::")
-        cell = f"v_{agent}_{name}"
-        if cell not in self.model.cells:
-            raise RoarError(f"no variable {var!r} in {self._s.spec.name}")
-        bag = self.state.index.get(Const(V.CONTAINS))
-        for c in map(V.contains, bag.items if bag else ()):
-            if c.cell.head.name == cell:
-                return value_of(c.value)
-        raise RoarError(f"{var} holds no value in this state")
+        return variable_value(self.model, self.state, var, self._s.spec.name)
 
     def format_run(self) -> str:
         """The run so far, one ROAR event a line (``step. agent text``)."""

@@ -33,7 +33,7 @@ from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
 from ..errors import RoarError
-from .api import AgentSpec, ClfModel, ScheduledFault
+from .api import AgentSpec, ClfModel, ScheduledFault, variable_value
 
 __all__ = ["STATEMENT_KINDS", "statement_kinds", "specs", "requests", "spec_requests", "fault_schedules",
            "paths", "ModelPath", "clf_terms", "clf_programs"]
@@ -394,6 +394,17 @@ class ModelPath:
 
     def __len__(self) -> int:
         return len(self.rules)
+
+    def facts(self, i: int = -1) -> list[str]:
+        """The facts of state ``i`` of the path (the last by default), printed as CLF writes them."""
+        from ..clf.query import show_context
+        return show_context(self.states[i])
+
+    def value(self, var: str, i: int = -1) -> object:
+        """For a spec's path: the value of ``agent::var`` in state ``i`` (the last by default)."""
+        if self.model is None:
+            raise RoarError("value() reads a spec's variables: this is a path of a .clf model (read facts())")
+        return variable_value(self.model, self.states[i], var, "the spec")
 
     def __repr__(self) -> str:
         end = ", then quiescent" if self.quiescent else ""

@@ -6,6 +6,7 @@ import pytest
 from hypothesis import HealthCheck, find, given, settings, strategies as st
 from hypothesis.errors import InvalidArgument
 
+from roar_formal.errors import RoarError
 from roar_formal import ClfModel, load, load_spec
 from roar_formal.clf.program import Program
 from roar_formal.clf.state import canonical_key
@@ -176,6 +177,17 @@ def test_paths_of_a_spec_carry_its_roar_events_and_reach_its_deadlock(models):
     assert texts[0] == "R0 sent -> pending  (arm::started == true)" and "make R2 to arm: arm::parked == true" in texts
     with pytest.raises(InvalidArgument, match="need a request"):
         find(paths(spec), lambda p: True, settings=FIND)
+    # a path's states read in the spec's terms: each variable's value as the events wrote it
+    assert path.value("arm::started", 0) is False and path.value("door::open", 0) is False
+    written = {}
+    for e in path.events:
+        if e.kind == "write":
+            written[e.as_json()["var"]] = e.as_json()["value"]
+    for var, v in written.items():
+        assert path.value(var) == v, var
+    assert any(f.startswith("contains v_arm_started") for f in path.facts())
+    with pytest.raises(RoarError, match="no variable 'arm::nope'"):
+        path.value("arm::nope")
 
 
 # ------------------------------------------------------------------ CLF terms and programs
