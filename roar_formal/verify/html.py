@@ -139,7 +139,8 @@ def _final(rep: dict, shape: str) -> list[str]:
             out.append(f'<p class="cycle">wait-for cycle: {escape(" -> ".join(cyc + [cyc[0]]))}</p><ul>')
             for a, b in zip(cyc, cyc[1:] + cyc[:1]):
                 why = "; ".join(e["why"] for e in dl["wait_for"] if e["from"] == a and e["to"] == b)
-                out.append(f"<li>{escape(a)} waits for {escape(b)}: {escape(why)}</li>")
+                whom = "its own variables" if a == b else escape(b)
+                out.append(f"<li>{escape(a)} waits for {whom}: {escape(why)}</li>")
             out.append("</ul>")
         else:
             out.append('<p class="cycle">no wait-for cycle between agents: the blocked activities wait for no '

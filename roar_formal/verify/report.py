@@ -155,10 +155,13 @@ def _roar_final_lines(rep: dict, shape: str, head: Optional[str] = None) -> Line
         pairs = list(zip(cyc, cyc[1:] + cyc[:1]))
         for a, b in pairs:
             why = "; ".join(e["why"] for e in dl["wait_for"] if e["from"] == a and e["to"] == b)
-            out.add(f"      {a} waits for {b}: {why}")
+            if a == b:   # a cycle of one: a wait on the agent's own variables, which nothing else will change
+                out.add(f"      {a} waits for its own variables: {why}")
+            else:
+                out.add(f"      {a} waits for {b}: {why}")
     else:
         out.add("    no wait-for cycle between agents: the blocked activities wait for no agent "
-                "(a request left unhandled, or a wait on the agent's own variables)", style="red", wrap=True)
+                "(a request no recipe handles, for instance)", style="red", wrap=True)
     return out
 
 

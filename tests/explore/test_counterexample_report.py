@@ -152,3 +152,35 @@ def test_dot_refuses_a_large_graph_and_bad_output_folders_are_located(monkeypatc
     code, _out, err = cli(monkeypatch, capsys, "check", "checker/mutual_make.toml", "--no-traces", "--png", afile)
     assert code == 2 and "--png" in err and "not a folder" in err and "Traceback" not in err
     assert afile.read_text() == "keep"
+
+
+SELF_WAIT = """
+gimbal = ability {
+  context = { { } { int pitch = 10; bool stable = false; } { } }
+  tasks = { level = task { post = { {stable == true} } recipes = { servo = recipe { body = {
+    wait(pitch <= 0);
+    set stable true;
+  } } } } }
+}
+camera = ability {
+  context = { { } { bool shot = false; } { } }
+  tasks = { shoot = task { post = { {shot == true} } recipes = { steady = recipe { body = {
+    make(gimbal::stable == true);
+    set shot true;
+  } } } } }
+}
+"""
+
+
+def test_a_wait_on_the_agents_own_variables_is_a_cycle_of_one_said_so(tmp_path, monkeypatch, capsys):
+    """The gimbal waits for its own pitch, which nothing changes: the wait-for graph has the
+    gimbal waiting for itself, and the report says what that means (it said "gimbal waits for
+    gimbal", and the message for no cycle named this very case)."""
+    spec = tmp_path / "gimbal.roar"
+    spec.write_text(SELF_WAIT, encoding="utf-8")
+    code, out, _err = cli(monkeypatch, capsys, "check", spec, "-r", "camera::shot == true", "--property",
+                          "deadlock", "--traces", tmp_path)
+    text = " ".join(out.split())
+    assert code == 1 and "wait-for cycle: gimbal -> gimbal" in text
+    assert "gimbal waits for its own variables: level.servo waits in wait(pitch <= 0)" in text
+    assert "waits for gimbal:" not in text
