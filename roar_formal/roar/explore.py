@@ -33,7 +33,7 @@ from typing import Optional
 from ..clf.context import Context
 from ..clf.rules import LIN
 from ..clf.terms import Const, Param, Root, const, param_term
-from ..errors import RoarError
+from ..errors import Pos, RoarError
 from ..explore.system import ClfSystem, Options, Successor, unchanged_system
 from .compile import CompiledModel
 from . import vocabulary as V
@@ -177,29 +177,41 @@ def sequential_pairs(model: CompiledModel, kept=False, plans: bool = True) -> li
     return out
 
 
-def job_sequence_pairs(model: CompiledModel, recipes=(), kept=False, source: str = "") -> list[Pair]:
+def job_sequence_pairs(model: CompiledModel, recipes=(), kept=False, source: str = "",
+                       at: Optional[dict] = None) -> list[Pair]:
     """The pairs a sequential-achievement check on ``model`` monitors: every pair of
     :func:`sequential_pairs` (with ``kept``), or only those of ``recipes`` ('agent.task.recipe').
     A recipe named with no pair, and a check left with no pair at all, are errors (``source``:
-    the job or property file, at the head of the message): never a silent pass."""
+    the job or property file, at the head of the message; ``at``: where each recipe name is
+    written, which an error about it names instead): never a silent pass."""
     every = sequential_pairs(model, kept=kept)
+    at = at or {}
     head = f"{source}: " if source else ""
+
+    def located(name: str) -> tuple[str, Optional[Pos]]:
+        pos = at.get(name)
+        return ("" if pos is not None else head), pos
     known = {f"{ag.name}.{t.name}.{r.name}" for ag in model.spec.agents for t in ag.tasks for r in t.recipes}
     unknown = sorted(set(recipes) - known)
     if unknown:
         from .props import did_you_mean
-        raise RoarError(f"{head}[sequential-achievement] names a recipe the spec does not have: {unknown[0]}"
-                        f"{did_you_mean(unknown[0], sorted(known))}; recipes are named 'agent.task.recipe'")
+        lead, pos = located(unknown[0])
+        raise RoarError(f"{lead}[sequential-achievement] names a recipe the spec does not have: {unknown[0]}"
+                        f"{did_you_mean(unknown[0], sorted(known))}; recipes are named 'agent.task.recipe'", pos)
     if recipes:
         missing = set(recipes) - {p.where for p in every}
         if missing:
-            raise RoarError(f"{head}[sequential-achievement] names recipes with no 'make A; make B' pair (nor an "
-                            f"ensure aborted before a later make or ensure): {', '.join(sorted(missing))}")
+            lead, pos = located(sorted(missing)[0])
+            raise RoarError(f"{lead}[sequential-achievement] names recipes with no 'make A; make B' pair (nor an "
+                            f"ensure aborted before a later make or ensure): {', '.join(sorted(missing))}", pos)
     if kept is not True and kept:
         unknown = set(kept) - known
         if unknown:
-            raise RoarError(f"{head}[sequential-achievement] kept names recipes the spec does not have: "
-                            f"{', '.join(sorted(unknown))}")
+            lead, pos = located(sorted(unknown)[0])
+            from .props import did_you_mean
+            first = sorted(unknown)[0]
+            raise RoarError(f"{lead}[sequential-achievement] kept names recipes the spec does not have: "
+                            f"{', '.join(sorted(unknown))}{did_you_mean(first, sorted(known))}", pos)
     pairs = [p for p in every if not recipes or p.where in recipes]
     if not pairs:
         raise RoarError(f"{head}sequential-achievement has nothing to check: the spec has no sequential sub-goals "

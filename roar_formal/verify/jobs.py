@@ -43,6 +43,7 @@ class PropertySpec:
     fairness_given: bool = False
     never: list[tuple[str, Pos]] = field(default_factory=list)   # invariant: patterns no reachable state matches
     sequence_recipes: list[str] = field(default_factory=list)   # agent.task.recipe; empty: every recipe
+    sequence_at: dict = field(default_factory=dict)   # a recipe name of recipes or kept -> where it is written
     # [sequential-achievement] kept: True (every recipe) or the agent.task.recipe names whose achieved
     # sub-goals must still hold when a later one is achieved and when the recipe ends; False: none
     sequence_kept: Any = False
@@ -258,6 +259,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                     raise RoarError(f"[sequential-achievement] recipes are named 'agent.task.recipe', not {r!r}",
                                     Pos(str(path), _line_of(path, "recipes"), 1))
                 spec.sequence_recipes.append(r)
+                spec.sequence_at.setdefault(r, _string_pos(path, "recipes", r))
         if "kept" in sa:
             _sequence_kept(sa["kept"], spec, path)
         if "sequential-achievement" not in spec.check:   # the table says how to check it: so it is checked
@@ -359,6 +361,7 @@ def _sequence_kept(v, spec: PropertySpec, path: Path) -> None:
             shown = json.dumps(r) if isinstance(r, (str, int, float, bool)) else f"a {type(r).__name__}"
             raise RoarError(f"{what}, not {shown}", at)
         names.append(r)
+        spec.sequence_at.setdefault(r, _string_pos(path, "kept", r))
     if spec.sequence_kept is not True:
         spec.sequence_kept = list(spec.sequence_kept or []) + [r for r in names
                                                                if r not in (spec.sequence_kept or [])]

@@ -128,7 +128,8 @@ def roar_setup(job: Job, model) -> tuple:
                       canonical=job.canonical)
     pairs = []
     if "sequential-achievement" in props.check:
-        pairs = job_sequence_pairs(model, props.sequence_recipes, props.sequence_kept, str(job.path))
+        pairs = job_sequence_pairs(model, props.sequence_recipes, props.sequence_kept, str(job.path),
+                                   getattr(props, "sequence_at", None))
     return program, start, options, pairs
 
 

@@ -26,7 +26,7 @@ from checker_cache import checker_result
 from roar_formal.cli import main
 from roar_formal.clf.query import with_big_stack
 from roar_formal.clf.state import canonical_key
-from roar_formal.errors import RoarError
+from roar_formal.errors import Pos, RoarError
 from roar_formal.verify.check import roar_events, run_job, save_counterexample
 from roar_formal.verify.jobs import load_job
 from roar_formal.explore.search import Budget, Explorer
@@ -546,7 +546,10 @@ def test_sequence_recipe_without_a_make_make_pair_fails_when_the_job_runs(tmp_pa
     assert loaded.props.sequence_recipes == [recipe, "cell.work.clamp_then_drill"]
     with pytest.raises(RoarError) as e:
         run_job(loaded)
-    assert _in_error(e.value, job)
+    # at the property file's line and column that name the recipe (it was at the job file)
+    props = tmp_path / "seq.toml"
+    line = props.read_text(encoding="utf-8").splitlines()[2]
+    assert e.value.pos == Pos(str(props), 3, line.index(recipe) + 1)
     why = "no 'make A; make B' pair" if "no_such" not in recipe else "names a recipe the spec does not have"
     assert why in e.value.message and recipe in e.value.message
     assert "clamp_then_drill" not in e.value.message
