@@ -171,6 +171,9 @@ class _Checker:
         return target
 
     def run(self) -> list[CheckError]:
+        if not self.spec.agents:
+            # (an empty file, or one of comments only: every request would name an unknown agent)
+            self.err("no-agent", self.spec.pos, "the spec declares no agent: write 'NAME = ability { ... }'")
         first: dict[str, a.Agent] = {}
         for ag in self.spec.agents:
             if ag.name in first:
@@ -539,6 +542,9 @@ class _Checker:
         if ag is None:
             self.err("unknown-variable", e.pos, f"unknown variable '{e.name}': a request names its "
                                                 f"variables with their agent, 'agent::{e.name}'")
+        elif e.name.lower() in ("true", "false"):
+            self.err("unknown-variable", e.pos, f"unknown variable '{e.name}' in agent '{ag.name}' (the booleans "
+                                                f"are written '{e.name.lower()}' and '{'false' if e.name.lower() == 'true' else 'true'}')")
         else:
             self.err("unknown-variable", e.pos, f"unknown variable '{e.name}' in agent '{ag.name}'"
                      + _did_you_mean(e.name, [x.name for x in ag.vars] + list(sc.locals)))

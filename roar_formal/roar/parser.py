@@ -693,6 +693,9 @@ def hyper_compat_warnings(node: a.Node) -> list[a.SpecWarning]:
 _EXPR_START = {"ID", "INT", "DOUBLE", "STRING", "TRUE", "FALSE", "LPAR", "BANG", "MINUS", "LAST_ERROR"}
 _OPERATORS = {"OROR", "ANDAND", "CMPOP", "PLUS", "MINUS", "STAR", "SLASH", "DOT"}
 _STATEMENTS = {"LET", "SET", "MAKE", "ENSURE", "WAIT", "ASSERT", "ABORT"}
+_KEYWORDS = {"let", "set", "make", "ensure", "wait", "assert", "abort"}
+#: control statements of other languages, which a spec writer may try in a recipe body
+_NO_CONTROL = {"if", "while", "for", "else", "loop", "until"}
 _CLOSERS = ["_SEMI", "_RBRACE", "_RPAR", "_COMMA", "_EQ", "_DCOLON"]
 _OPENER_OF = {"_RBRACE": "LBRACE", "_RPAR": "LPAR"}
 _CLOSER_OF = {v: k for k, v in _OPENER_OF.items()}
@@ -799,6 +802,22 @@ def _hints(e: UnexpectedToken, expected: set[str]) -> list[str]:
 
     if expected == {"LBRACE", "_RBRACE"} and tok.type in _EXPR_START:
         hints.append("each condition goes in its own braces: pre = { {a == 1} {b < 2} }")
+    if expected == {"LBRACE", "_RBRACE"} and tok.type in ("_SEMI", "_COMMA"):
+        hints.append(f"conditions are not separated by '{tok}': pre = {{ {{a == 1}} {{b < 2}} }}")
+    # a statement the language does not have: `if (c) { ... }`, `while (c) { ... }`
+    control = [v for v in stack[-5:] if (isinstance(v, Token) and v.type == "ID" and str(v) in _NO_CONTROL)
+               or (isinstance(v, a.Call) and v.name in _NO_CONTROL and v.agent is None)]
+    if control and tok.type == "LBRACE":
+        word = str(control[-1]) if isinstance(control[-1], Token) else control[-1].name
+        hints.append(f"the spec language has no '{word}': a recipe body is a sequence of statements; choose "
+                     "between behaviours with several recipes (their pre-conditions pick one) or wait for a "
+                     "condition with 'wait(...)'")
+    # a misspelt statement keyword (`sett x true`): a name where a statement starts, then a name
+    if isinstance(prev, Token) and prev.type == "ID" and tok.type == "ID" and "_SEMI" in expected:
+        import difflib
+        close = difflib.get_close_matches(str(prev), sorted(_KEYWORDS), n=1, cutoff=0.6)
+        if close:
+            hints.append(f"did you mean '{close[0]}'?")
 
     # Unclosed or unmatched brackets (closed pairs may still be on the stack, unreduced).
     open_: list[Token] = []
