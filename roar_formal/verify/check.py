@@ -37,6 +37,11 @@ __all__ = ["run_job", "run_roar_job", "JobResult", "counterexample_steps", "roar
            "load_model", "make_never"]
 
 
+def compiled_spec(program) -> bool:
+    """Is this program a compiled ROAR spec (the framework's request states are declared)?"""
+    return {"s_success", "s_failure", "rs", "rq"} <= set(program.sig.consts)
+
+
 def run_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None) -> JobResult:
     if getattr(job, "robot", None) is not None:
         return with_big_stack(run_robot_job, job, on_progress)
@@ -86,6 +91,12 @@ def _run_job(job: Job, on_progress) -> JobResult:
             else:
                 verdicts[p] = check_deadlock(graph, accept) if p == "deadlock" else \
                     check_livelock(graph, strong=job.props.strong)
+        dl = verdicts.get("deadlock")
+        if dl is not None and dl.violated and accept is None and compiled_spec(program):
+            # a compiled spec checked as a plain program: its runs end quiescent, successful or not
+            dl.message += ("; this program is a compiled ROAR spec, whose every run ends in a quiescent "
+                           "state (success included): check the spec itself with its request, which accepts "
+                           "the states where every request is final, or give [deadlock] accept")
         return verdicts
 
     if grounding_stopped is not None:

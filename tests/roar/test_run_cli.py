@@ -408,3 +408,16 @@ def test_the_step_bound_is_the_number_of_steps_the_run_takes(capsys, bound):
     got = json.loads(out)
     assert got["clf_steps"] == bound and not got["quiescent"]
     assert max(e["step"] for e in got["events"]) <= bound
+
+
+def test_a_compiled_spec_checked_as_a_program_says_to_check_the_spec(capsys, tmp_path):
+    """A compiled spec's runs all end quiescent, success included: checked as a plain .clf program
+    its success is a deadlock, and the verdict says why and what to check instead."""
+    spec = MODELS / "faulty" / "mutual_make_fixed.roar"
+    target = tmp_path / "compiled.clf"
+    code, _out, err = cli(capsys, "compile", spec, "--request", "arm::started == true", "-o", target)
+    assert code == 0, err
+    code, out, _err = cli(capsys, "check", target)
+    text = " ".join(out.split())
+    assert code == 1 and "deadlock: violated" in text
+    assert "this program is a compiled ROAR spec, whose every run ends in a quiescent state" in text
