@@ -294,6 +294,11 @@ def replay_robot_trace(trace, header: dict, records: list, model, functional=Non
     mine = sources_fingerprint(spec_files(spec_ast))
     theirs = header.get("spec_fingerprint")
     if theirs and theirs != mine and not force:
+        named = header.get("spec")
+        from pathlib import Path
+        if isinstance(named, str) and Path(named).name != Path(model).name:
+            raise RoarError(f"{trace}: the trace was made from {named}, not {model} (the sources differ): replay "
+                            f"it on the spec it was made from, or pass --force to try it on this one")
         raise RoarError(f"{trace}: the trace was made from other sources than {model} (its fingerprint differs): "
                         f"it is stale; simulate again, or pass --force to replay it anyway")
     request = header.get("request")

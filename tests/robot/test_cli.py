@@ -108,6 +108,9 @@ def test_replay_of_a_robot_trace_needs_the_spec_and_refuses_a_stale_one(cli, cap
     assert code == 2 and "stale" in err
     code, out, err = cli(capsys, "replay", trace, "--model", other, "--force")
     assert code == 0
+    # another spec altogether: the message names the spec the trace was made from
+    code, out, err = cli(capsys, "replay", trace, "--model", MODELS / "pick_place.roar")
+    assert code == 2 and f"the trace was made from {DOOR}, not " in " ".join(err.split())
 
 
 def test_replay_of_an_edited_robot_trace_names_the_step(cli, capsys, tmp_path):
