@@ -221,5 +221,7 @@ def assert_succeeds(spec: Target, request: str, *, seed: int = 0, faults: Sequen
         return run
     stem = re.sub(r"[^A-Za-z0-9_-]", "_", Path(t.name.strip("<>")).stem) or "spec"
     trace = run.save_trace(current_settings().traces_folder() / f"{stem}.run.jsonl")
-    raise RoarAssertionError(f"request {request} ended in {run.outcome}, not success\n{run.format()}\n"
+    how = (f"ended in {run.outcome}, not success" if run.quiescent else
+           f"did not finish within {max_steps:,} steps (its request is {run.outcome}; max_steps raises the bound)")
+    raise RoarAssertionError(f"request {request} {how}\n{run.format()}\n"
                              f"  trace: {trace}", trace=trace, run=run)

@@ -86,6 +86,11 @@ def test_assert_succeeds_prints_the_run_and_writes_its_trace(examples, traces):
     assert lines[1] == f"{spec.path}: request cell::lifted == true, faults close_jaws:1, seed 0"
     assert lines[-1] == f"  trace: {traces / 'pick.run.jsonl'}"
     assert e.value.run.outcome == "failure" and read_trace(e.value.trace)[0]["outcome"] == "failure"
+    # a run cut by its step bound did not end: said so, with the bound (it said "ended in running")
+    with pytest.raises(RoarAssertionError) as e:
+        assert_succeeds(spec, "cell::lifted == true", max_steps=12)
+    first = str(e.value).splitlines()[0]
+    assert first.startswith("request cell::lifted == true did not finish within 12 steps (its request is ")
 
 
 def test_a_target_needs_what_its_kind_needs(models, examples):
