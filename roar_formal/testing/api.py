@@ -520,8 +520,8 @@ def _check_fault_names(faults: Sequence["Fault"], spec: "AgentSpec", model: "Com
             continue
         names = sorted({n for _o, n in pairs})
         what = f"its functions: {', '.join(names)}" if names else "it calls no function"
-        raise RoarError(f"--fault {f}: no such call happened in this run: the spec has no function '{f.name}'"
-                        f"{did_you_mean(f.name, known)}; {what}")
+        raise RoarError(f"--fault {f}: the spec has no function '{f.name}'{did_you_mean(f.name, known)}; {what} "
+                        "(checked before the run)")
 
 
 def _job_name(spec_name: str, request: str) -> str:
