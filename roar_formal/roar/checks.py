@@ -467,9 +467,26 @@ class _Checker:
                     self.err("where", p.pos, f"'{pair}' writes no controllable variable of agent "
                                              f"'{target.name}': one side of a where pair must be "
                                              f"'{target.name}::var' with var controllable")
-            elif not _compat(lt, rt):
+            elif not _compat(lt, rt) and not self._literal_of_newtype(p, lt, rt, writes[0]):
                 self.err(self._mix(lt, rt), p.pos, f"the where pair '{pair}' sets {_show(lt)} "
                                                    f"to {_show(rt)}" + self._mix_hint(lt, rt))
+
+    def _literal_of_newtype(self, p: a.WherePair, lt: Ty, rt: Ty, var_side: a.Expr) -> bool:
+        """A where pair giving a newtype variable a literal of its representation (``base::goal ==
+        3.0`` for a ``meters = newtype double``): a literal has no type of its own, and there is no
+        other way to write a newtype's value in a request."""
+        value = p.right if var_side is p.left else p.left
+        var_t, val_t = (lt, rt) if var_side is p.left else (rt, lt)
+        lit = value.operand if isinstance(value, a.Unary) and value.op == "-" else value
+        if not isinstance(lit, (a.IntLit, a.DoubleLit, a.BoolLit, a.StringLit)) or not isinstance(var_t, str) \
+                or "::" not in var_t:
+            return False
+        owner, _, name = var_t.partition("::")
+        ag = self.agents.get(owner)
+        decl = ag.type_decl(name) if ag is not None else None
+        if not isinstance(decl, a.NewType):
+            return False
+        return _compat(self.resolve_type(decl.base, self.scope(ag)), val_t)
 
     def _target_var(self, side: a.Expr, target: a.Agent, sc: _Scope) -> Optional[a.Var]:
         if isinstance(side, a.Remote) and side.agent == target.name:

@@ -378,3 +378,24 @@ def test_setting_a_misspelt_variable_suggests_the_name(tmp_path):
     with pytest.raises(_E) as err:
         _load(path)
     assert "unknown variable 'dnoe' in agent 'mission'; did you mean 'done'?" in err.value.format()
+
+
+NEWTYPE = """
+base = ability {
+  context = { { meters goal; } { bool arrived = false; } { } }
+  export = { { meters = newtype double; } { } { } }
+  tasks = { go = task { post = { {arrived == true} } recipes = { r = recipe { body = { set arrived true; } } } } }
+}
+"""
+
+
+@pytest.mark.parametrize("where, ok", [("3.0", True), ("-2.5", True), ("3", False), ("base::arrived", False)])
+def test_a_request_gives_a_newtype_variable_a_literal_of_its_representation(where, ok):
+    """There is no other way to write a newtype's value in a request: a literal of the
+    representation (a double for meters) is accepted; another type still is not."""
+    spec = parse_roar(NEWTYPE, "n.roar")
+    check_spec(spec)
+    errs = request_errors(spec, parse_constraint(f"base::arrived == true where base::goal == {where}", "<request>"))
+    assert (errs == []) == ok, [e.message for e in errs]
+    if not ok and where == "3":
+        assert "sets base::meters to int" in errs[0].message
