@@ -433,6 +433,9 @@ class CompiledModel:
     crashes: Optional[Crashes] = None   # the agents that may crash (None: no faults)
     epochs: dict[str, int] = field(default_factory=dict)          # epoch sentinel task -> crashes so far
     timing: Optional[Timing] = None     # timed mode (None: untimed; docs/semantics.md, Time)
+    # the functional layer compiled against: its primitives' outcomes (replay reads an answer as the
+    # outcome that covers it)
+    registry: Optional[Registry] = field(default=None, repr=False, compare=False)
     tick_ms: Optional[int] = None       # timed, with a clock: one tick in ms (the gcd of the periods)
     cycle: Optional[int] = None         # ... the clock counts ticks modulo this
 
@@ -2537,6 +2540,7 @@ def _compile_spec(spec, request, registry, functional, crashes, time) -> Compile
     model = _Compiler(checked.with_types(typed), registry, functional, crashes, timing).compile(req)
     model.crashes = crashes if crashes else None
     model.timing = timing
+    model.registry = registry
     return model
 
 

@@ -12,6 +12,8 @@ declared outcome rule that gives the same answer (see :class:`_Replayed`).
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -221,6 +223,10 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
         res = replay_steps(path, program, start, replayed.steps(), replayed.on_step, notes, replayed.wrap(make_system))
     except RoarError as exc:
         raise replayed.explain(exc) from None
+    if replayed.abstracted:
+        res.notes.append(f"{replayed.abstracted} answer(s) of the functional layer are no declared outcome's value "
+                         f"and were read as the declared outcome that covers them (the values the outcomes "
+                         f"stand for: {', '.join(f'{a} as {b}' for a, b in replayed.stands_for.items()) or 'the same'})")
     steps = [{"step": r["step"], "loop": r["loop"], "rule": r["rule"], "group": str(r["group"]),
               "events": [], "changes": []} for r in res.records]
     requests: dict = {}
@@ -273,6 +279,8 @@ class _Replayed:
         self.taken = 0                         # steps replayed so far
         self.current: Optional[dict] = None    # the step being replayed, as given to replay_steps
         self.opaque: dict[str, str] = {}       # an opaque value of the run -> the model's (see answer)
+        self.stands_for: dict[str, str] = {}   # a value an answer gave -> the covering outcome's (see _covered)
+        self.abstracted = 0                    # answers read as the outcome that covers them
 
     def wrap(self, make_system):
         def make(prog: Program, begin: Context):
@@ -298,17 +306,22 @@ class _Replayed:
                 if self.taken != k or self.system is None:   # replay_steps takes each step before the next
                     raise RuntimeError("replay: a functional-layer step read before the steps preceding it")
                 rec = self.answer(rec)
-            elif self.opaque:
+            elif self.opaque or self.stands_for:
                 rec = self._unopaque(rec)
             self.current = rec
             yield rec
 
     def _unopaque(self, rec: dict) -> dict:
         """``rec`` with the opaque values the run's functional layer made (``vopq K``: a Python
-        object the spec cannot look into) as the model's outcomes made them."""
+        object the spec cannot look into) as the model's outcomes made them, and the values an
+        outcome covers as that outcome wrote them."""
         def swap(fact):
-            return _OPAQUE.sub(lambda m: self.opaque.get(m.group(0), m.group(0)), fact) \
-                if isinstance(fact, str) else fact
+            if not isinstance(fact, str):
+                return fact
+            fact = _OPAQUE.sub(lambda m: self.opaque.get(m.group(0), m.group(0)), fact)
+            for run_v, model_v in self.stands_for.items():
+                fact = fact.replace(run_v, model_v)
+            return fact
         return {**rec, **{k: [swap(f) for f in rec[k]] for k in ("consumed", "produced")
                           if isinstance(rec.get(k), list)}}
 
@@ -348,6 +361,9 @@ class _Replayed:
             if _same_facts(got, kept):
                 self.opaque.update(made)
                 return {**rec, "rule": succ.label, "consumed": got[0] + budget[0], "produced": got[1] + budget[1]}
+        covered = self._covered(rec, want, call, fc, outcomes)
+        if covered is not None:
+            return covered
         answer = [f for f in want[1]]
         declared = sorted(t.name for t in self.system.program.templates if t.name.startswith(f"outcome_{fc}_"))
         if not declared:
@@ -376,6 +392,41 @@ class _Replayed:
         raise RoarError(f"{where}: the recorded answer of {qual} is none that a declared outcome "
                         f"{'enabled here ' if budget else ''}produces", None, notes)
 
+    def _covered(self, rec: dict, want: tuple, call: str, fc: str, outcomes: list) -> Optional[dict]:
+        """The answer as the declared outcome that *covers* it (``Outcome.covers``, as a robot's
+        results are classified: spa_loop's odometry answers 4 where the outcome ``moving`` stands
+        for any position but the goal, written 3), or None. The answer's value is then read as
+        the outcome's in this step and in the steps after (``stands_for``)."""
+        if self.compiled is None or self.compiled.registry is None or fc not in self.compiled.functions:
+            return None
+        owner, name = self.compiled.functions[fc]
+        prim = self.compiled.registry.lookup(name, owner)
+        returned = [m.group(1) for m in map(_RETURN.match, want[1]) if m]
+        if prim is None or len(returned) != 1 or len(want[1]) != 1:
+            return None   # (an answer that also writes cells: not abstracted)
+        value = _python_value(returned[0])
+        if value is _NO_VALUE:
+            return None   # a struct or a string: its parts would be read as other values in the steps after
+        from ..roar.functional import value_fits
+        from ..robot.activity import CallResult
+        from ..robot.sim import classify
+        rty = self.compiled.fn_types.get(fc)
+        if not value_fits(value, rty):
+            return None   # a value of another type than the function's: no outcome stands for it
+        names = classify(prim.outcomes, CallResult(value), rty)
+        for succ, kept, budget in outcomes:
+            if succ.label not in {f"outcome_{fc}_{n}" for n in names} or len(kept[1]) != 1:
+                continue
+            m = _RETURN.match(kept[1][0])
+            if m is None:
+                continue
+            if m.group(1) != returned[0] and returned[0].startswith("("):
+                self.stands_for[returned[0]] = m.group(1)
+            produced = [f"return {m.group(1)} {want[1][0].rsplit(' ', 1)[1]}"]
+            self.abstracted += 1
+            return {**rec, "rule": succ.label, "consumed": list(want[0]) + budget[0], "produced": produced + budget[1]}
+        return None
+
     def _function(self, fc: str) -> str:
         owner, name = (self.compiled.functions.get(fc, (None, None)) if self.compiled is not None else (None, None))
         if name is None:
@@ -390,6 +441,11 @@ class _Replayed:
     # ------------------------------------------------------------ a step replay cannot take
     def explain(self, exc: RoarError) -> RoarError:
         """``exc``, or, when the step's rule is enabled but on other facts, an error that says so."""
+        if self.stands_for:
+            exc.notes.append("earlier answers of the functional layer were read as the declared outcome that covers "
+                             "them, and their values as the outcome's in the steps after ("
+                             + ", ".join(f"{a} as {b}" for a, b in self.stands_for.items())
+                             + "): a fact that held such a value for another reason reads differently too")
         rec = self.current
         if "no such enabled step" not in exc.message or rec is None or self.system is None or self.state is None:
             return exc
@@ -428,6 +484,23 @@ class _Replayed:
 
 
 _OPAQUE = re.compile(r"\(vopq \d+\)")
+_RETURN = re.compile(r"^return (.+) \S+$")
+_NO_VALUE = object()
+
+
+
+
+def _python_value(printed: str):
+    """The Python value of a printed answer (a number or a boolean), or _NO_VALUE."""
+    m = re.fullmatch(r"\(vnum (-?\d+)(?:/(\d+))?\)", printed)
+    if m:
+        return int(m.group(1)) if m.group(2) is None else Fraction(int(m.group(1)), int(m.group(2)))
+    m = re.fullmatch(r"\(vnum (-?\d+\.\d+)\)", printed)
+    if m:
+        return Fraction(m.group(1))
+    if printed in ("(vbool tt)", "(vbool ff)"):
+        return printed == "(vbool tt)"
+    return _NO_VALUE
 _PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
 
 

@@ -134,7 +134,7 @@ def test_bad_fault_syntax_exits_2(capsys, fault):
 
 @pytest.mark.parametrize("case,fault,fragment", [
     (SPA, "compute_plan:50", "no such call happened"),
-    (DEMO, "no_such_primitive", "no such call happened"),
+    (DEMO, "no_such_primitive", "the spec has no function"),
     (SPA, "compute_plan=bogus", "has no outcome 'bogus'"),
 ], ids=["spa-call-50", "demo-unknown-primitive", "spa-unknown-outcome"])
 def test_fault_on_a_call_that_never_happens_exits_2(capsys, case, fault, fragment):

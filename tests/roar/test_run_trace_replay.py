@@ -210,3 +210,29 @@ CAM_SPEC = """cam = ability {
   }
 }
 """
+
+
+def test_an_answer_an_outcome_covers_replays_as_that_outcome(tmp_path):
+    """spa_loop's odometry answers the robot's position (1, 2, ... 6 as it moves) where the
+    declared outcome 'moving' stands for any position but the goal, written 3: each such answer
+    replays as the outcome that covers it, its value read as the outcome's in the steps after,
+    and replay says so (the trace was refused at its first odometry answer)."""
+    spec = load_spec(ROOT / "models" / "spa_loop.roar")
+    run = spec.run("exec::arrived == true where exec::goal == 7")
+    assert run.ok
+    trace = run.save_trace(tmp_path / "spa.jsonl")
+    rep = replay(trace, ROOT / "models" / "spa_loop.roar")
+    assert rep.confirmed is True and rep.steps == run.clf_steps
+    note = " ".join(rep.notes)
+    assert "were read as the declared outcome that covers them" in note and "(vnum 1) as (vnum 3)" in note
+    # an answer no outcome covers is still refused (the goal's outcome covers 7 only, 'moving' all
+    # but 7: a bool where a number is declared is covered by none)
+    header, *lines = trace.read_text(encoding="utf-8").splitlines()
+    records = [json.loads(x) for x in lines]
+    k = next(i for i, r in enumerate(records) if r["rule"] == "functional_layer"
+             and r["produced"][0].startswith("return (vnum 1) "))
+    records[k]["produced"] = [records[k]["produced"][0].replace("(vnum 1)", "(vbool tt)")]
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text("\n".join([header] + [json.dumps(r) for r in records]) + "\n", encoding="utf-8")
+    with pytest.raises(RoarError, match="is none that a declared outcome"):
+        replay(bad, ROOT / "models" / "spa_loop.roar")
