@@ -264,56 +264,37 @@ class Reducer:
     steps). See the module docstring for what each adds to a set."""
 
     def __init__(self, templates: list[Template], observers: tuple = (), visible_families: frozenset = frozenset(),
-                 progress=None):
+                 progress=None, premise_families=None):
+        """``premise_families(family)``: the families a proof of a goal of that family may read
+        (the program's clauses, transitively; ``Program.premise_families``). Without it, a rule
+        with a premise proved from clauses makes the program unanalyzable."""
         self.templates = [t for t in templates if t.forward]
         self.analyzable = True
+        self.premise_families = premise_families
         self.consumers: dict = {}  # family -> [(template, pattern)] of consuming premises
         self.producers: dict = {}  # family -> [(template, pattern, fresh slots)] of head facts
-        self.proved: dict = {}  # template -> families of its premises proved from clauses
-        self.provers_of: dict = {}  # family -> templates with a premise of that family proved from clauses
+        # family -> the same for head facts that put back a fact the rule consumed (a read): no
+        # producer of a linear fact, unless such a premise may be served by a persistent or an
+        # affine fact (then the head makes a new linear copy): see _producer_steps
+        self.readers: dict = {}
+        self.extra_modes: set = set()   # families some rule adds as persistent or affine facts
+        self.proved: dict = {}  # template -> families its proofs from clauses may read
+        self.provers_of: dict = {}  # family -> templates with a premise whose proofs may read that family
         self.pers_heads: dict = {}  # template -> families it adds as persistent facts
         self.progress = progress
         # template of a rule put in the context -> [(the template whose head puts it there, the
         # slots that head makes fresh)]
         self.creators: dict = {}
         self.nested: set = set()  # id() of the templates of rules put in the context
+        self.known: set = set()   # id() of every template learnt (program rules, nested, start rules)
         for top in self.templates:
-            for t in [top, *_nested(top)]:
-                for a in t.head:
-                    if a[0] == "rule":
-                        fresh_here = frozenset(x[1] for x in t.head if x[0] == "fresh")
-                        for alt in a[2]:
-                            self.nested.add(id(alt))
-                            self.creators.setdefault(alt, []).append((t, fresh_here))
-                fresh = frozenset(a[1] for a in t.head if a[0] == "fresh")
-                for p in t.premises:
-                    if p.backward:
-                        if p.family in BUILTINS:
-                            continue  # a function of the bindings alone
-                        pat = p.pattern
-                        if t is not top or type(pat) is not Root or not isinstance(pat.head, Const):
-                            self.analyzable = False
-                            continue
-                        self.proved.setdefault(t, set()).add(pat.head)
-                        self.provers_of.setdefault(pat.head, []).append(t)
-                    elif p.family is None:
-                        self.analyzable = False
-                    elif p.mode in (LIN, AFF):
-                        self.consumers.setdefault(p.family, []).append((t, p.pattern))
-                for a in t.head:
-                    if a[0] == "fact":
-                        if any(not p.backward and p.mode == a[1] and p.pattern == a[2] for p in t.premises):
-                            # a fact the rule consumes and puts back (a read): it never makes one
-                            # appear that was not there
-                            continue
-                        self.producers.setdefault(a[2].head, []).append((t, a[2], fresh))
-                        if a[1] == PERS:
-                            self.pers_heads.setdefault(t, set()).add(a[2].head)
+            self._learn(top, nested=False)
         # abstract steps every set holds: the observers, and every rule touching a visible family
         self.always: list = [(o, {}) for o in observers]
         for o in observers:
             if any(p.backward and p.family not in BUILTINS for p in o.premises):
                 self.analyzable = False
+        self.visible_families = visible_families
         if visible_families:
             for t in self.templates + [t for top in self.templates for t in _nested(top)]:
                 fams = {p.family for p in t.premises} | {a[2].head for a in t.head if a[0] == "fact"}
@@ -379,26 +360,79 @@ class Reducer:
         self.reduced += 1
         return sorted(best)
 
-    def _producer_steps(self, fam, args: tuple, memo: dict) -> list:
+    def _learn(self, top: Template, nested: bool) -> None:
+        """The static tables for a template and the templates of the rules its head puts in the
+        context (``nested``: ``top`` is itself one, e.g. a rule of the start state)."""
+        if id(top) in self.known:
+            return
+        for t in [top, *_nested(top)]:
+            self.known.add(id(t))
+            if nested or t is not top:
+                self.nested.add(id(t))
+            for a in t.head:
+                if a[0] == "rule":
+                    fresh_here = frozenset(x[1] for x in t.head if x[0] == "fresh")
+                    for alt in a[2]:
+                        self.nested.add(id(alt))
+                        self.creators.setdefault(alt, []).append((t, fresh_here))
+            fresh = frozenset(a[1] for a in t.head if a[0] == "fresh")
+            for p in t.premises:
+                if p.backward:
+                    if p.family in BUILTINS:
+                        continue  # a function of the bindings alone
+                    pat = p.pattern
+                    if (t is not top or nested or type(pat) is not Root or not isinstance(pat.head, Const)
+                            or p.mode != PERS or self.premise_families is None):
+                        # a proof that may consume facts (a linear or affine goal: its clauses may
+                        # use up linear facts), or whose reads are not known: not analyzed
+                        self.analyzable = False
+                        continue
+                    for fam in self.premise_families(pat.head):
+                        self.proved.setdefault(t, set()).add(fam)
+                        self.provers_of.setdefault(fam, []).append(t)
+                elif p.family is None:
+                    self.analyzable = False
+                elif p.mode in (LIN, AFF):
+                    self.consumers.setdefault(p.family, []).append((t, p.pattern))
+            used: list = [(p.mode, p.pattern) for p in t.premises if not p.backward]
+            for a in t.head:
+                if a[0] == "fact":
+                    if a[1] in (PERS, AFF):
+                        self.extra_modes.add(a[2].head)
+                    if (a[1], a[2]) in used:
+                        # it consumes this very fact and puts it back (a read), as many times as
+                        # it consumes it: it makes no new one (unless it read a persistent or an
+                        # affine one, see readers)
+                        used.remove((a[1], a[2]))
+                        self.readers.setdefault(a[2].head, []).append((t, a[2], fresh))
+                        continue
+                    self.producers.setdefault(a[2].head, []).append((t, a[2], fresh))
+                    if a[1] == PERS:
+                        self.pers_heads.setdefault(t, set()).add(a[2].head)
+
+    def _producer_steps(self, fam, args: tuple, memo: dict, reads: bool = False) -> list:
         """The abstract steps producing a fact of ``fam`` overlapping ``args``: [(template,
         binding, key)] (memoised in ``memo``: the terms are hash-consed, and the same arguments
-        recur from state to state)."""
-        key = (fam, args)
+        recur from state to state). ``reads``: with the rules that put back a fact of ``fam``
+        they consumed (a fact of ``fam`` may be persistent or affine, and such a rule reading it
+        adds a linear one)."""
+        key = (fam, args, reads)
         got = memo.get(key)
         if got is None:
             got = []
-            for ptpl, pat, fresh in self.producers.get(fam, ()):
-                pb = _bind(pat, args, fresh)
-                if pb is not None:
-                    got.append((ptpl, pb, (id(ptpl), None, tuple(sorted((k, id(v)) for k, v in pb.items())))))
+            for table in ((self.producers, self.readers) if reads else (self.producers,)):
+                for ptpl, pat, fresh in table.get(fam, ()):
+                    pb = _bind(pat, args, fresh)
+                    if pb is not None:
+                        got.append((ptpl, pb, (id(ptpl), None, tuple(sorted((k, id(v)) for k, v in pb.items())))))
             memo[key] = got
         return got
 
-    def _new_producers(self, fam, args: tuple, seen_abs: set, memo: dict) -> int:
+    def _new_producers(self, fam, args: tuple, seen_abs: set, memo: dict, reads: bool = False) -> int:
         """How many abstract steps producing a fact of ``fam`` overlapping ``args`` are not in
         the set yet (the cost of taking that fact as the one a disabled step waits for)."""
         n = 0
-        for _ptpl, pb, key in self._producer_steps(fam, args, memo):
+        for _ptpl, pb, key in self._producer_steps(fam, args, memo, reads):
             if key not in seen_abs:
                 n += 1 if pb else UNBOUND_COST
         return n
@@ -418,9 +452,33 @@ class Reducer:
         work_abs: list = []
         in_set.add(seed)
         progress = self.progress
-        memo = self.producer_memo   # (family, abstract arguments) -> the abstract steps producing such a fact
+        for r in ctx.rules.values():   # rules of the start state: learnt as rules of the context
+            for t in r.alts:
+                if id(t) not in self.known:
+                    self._learn(t, nested=True)
+                    self.producer_memo.clear()
+                    for u in [t, *_nested(t)]:
+                        fams = {p.family for p in u.premises} | {a[2].head for a in u.head if a[0] == "fact"}
+                        if fams & self.visible_families:
+                            self.always.append((u, {}))
+        if not self.analyzable:
+            return None
+        memo = self.producer_memo   # (family, abstract arguments, reads) -> the abstract steps producing such a fact
         if len(memo) > 100_000:
             memo.clear()
+        extra: dict = {}
+
+        def reads_of(fam) -> bool:
+            """May a rule reading a fact of ``fam`` (consuming and putting it back) add a new linear
+            one? When such a fact may be persistent or affine (a rule adds one, or the state has one)."""
+            got = extra.get(fam)
+            if got is None:
+                got = fam in self.extra_modes
+                if not got:
+                    bag = ctx.index.get(fam)
+                    got = bag is not None and any(f in ctx.pers or f in ctx.aff for f in bag.items)
+                extra[fam] = got
+            return got
         live: dict = {}   # id(template) -> the rules of the context with it as an alternative
         for r in ctx.rules.values():
             for t in r.alts:
@@ -537,11 +595,11 @@ class Reducer:
                 for p, (mode, (fam, args)) in zip(premises, facts):
                     got = _serving(ctx, fam, args)
                     if not got:
-                        n = self._new_producers(fam, args, seen_abs, memo)
+                        n = self._new_producers(fam, args, seen_abs, memo, reads_of(fam))
                         if cost is None or n < cost:
                             needed, cost, split_on = [(fam, args)], n, None
                     elif self.split and not all(a is not _ANY and not a.metas for a in args):
-                        n = len(got) + self._new_producers(fam, args, seen_abs, memo)
+                        n = len(got) + self._new_producers(fam, args, seen_abs, memo, reads_of(fam))
                         if cost is None or n < cost:
                             needed, cost, split_on = [(fam, args)], n, (p, got)
                 if split_on is not None:
@@ -562,7 +620,7 @@ class Reducer:
                         if fam in self.pers_heads.get(ptpl, ()):
                             add_abs(ptpl, {})
                     continue
-                for ptpl, pb, _key in self._producer_steps(fam, args, memo):
+                for ptpl, pb, _key in self._producer_steps(fam, args, memo, reads_of(fam)):
                     add_abs(ptpl, pb)
         return sorted(in_set)
 

@@ -193,7 +193,7 @@ class ClfSystem:
                 from .reduction import Reducer
                 self.reducer = Reducer(self.program.templates, self.options.observers,
                                        self.options.visible_families,
-                                       lambda c: self._progress(c.rule))
+                                       lambda c: self._progress(c.rule), self.program.premise_families)
             pick = self.reducer.choose(state, choices)
         if pick is None:
             return [self._successor(state, c) for c in choices], None, ()

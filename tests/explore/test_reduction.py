@@ -291,6 +291,29 @@ def test_continuations_in_the_context_reduce():
     assert ex.system.reducer.reduced > 0
 
 
+# Programs an audit of the reduction found it unsound on (each missed a reachable quiescent state):
+# a linear goal proved from clauses that use up a linear fact (bug 1); a rule that consumes one
+# copy of a fact and makes two (2); rules in the start state (3); a persistent fact a proof reads
+# through a clause (4); a "read" of a fact served by a persistent one, which adds a linear copy (5).
+AUDIT = {
+    "proof-consumes": "a : type. b : type. c : type. d : type.\nb_from_a : b o- a.\nr : b -o {c}.\n"
+                      "r2 : b -o {d}.\n#exec * a.\n",
+    "two-copies": "a : type. x : type. y : type. done : type. zz : type. fuel : type.\ne : x -o {y}.\n"
+                  "z : x * done -o {zz}.\ndup : a * fuel -o {a * a}.\nq : a * a -o {done}.\n#exec * x * a * fuel.\n",
+    "start-rules": "p : type. q : type. r : type.\ns : p -o {r}.\n#exec * (p -o {q}) * p.\n",
+    "proof-reads": "a : type. b : type. c : type. d : type. x : type. y : type.\nbc : b <- a.\ne : x -o {d}.\n"
+                   "mk : y -o {!a}.\nr : !b * x -o {c}.\n#exec * x * y.\n",
+    "persistent-read": "r : type. a : type. b : type. done : type.\nuse : b * r -o {done}.\n"
+                       "rd : a * r -o {r}.\n#exec * !r * a * b.\n",
+}
+
+
+@pytest.mark.parametrize("name", sorted(AUDIT))
+def test_the_audits_programs_keep_their_quiescent_states(name):
+    got = same_deadlocks(AUDIT[name])
+    assert got is not None
+
+
 # ------------------------------------------------------------ counterexamples replay
 
 
