@@ -163,3 +163,22 @@ def match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
         if not assign(list(w), list(g)):
             return None
     return ren
+
+
+# ------------------------------------------------------------ answers read as their outcomes
+
+_RETURN = re.compile(r"^return (.+) \S+$")
+
+
+def returned_values(facts: list) -> list[str]:
+    """The values of the ``return V D`` facts among printed facts, in order."""
+    return [m.group(1) for m in map(_RETURN.match, facts) if m]
+
+
+def read_as(fact: str, stands_for: dict) -> str:
+    """A printed fact of a trace with each value an answer gave written as the declared outcome
+    that stands for it writes it (``stands_for``: printed value -> printed value; compound values
+    only, a bare constant being too common to swap). Robot and run replays read traces so."""
+    for answered, model_v in stands_for.items():
+        fact = fact.replace(answered, model_v)
+    return fact

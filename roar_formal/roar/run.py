@@ -906,6 +906,17 @@ def cells_of(ctx, cell: str):
             yield f
 
 
+def outside_request_state(ctx) -> str:
+    """How the outside world's request (R0: the one emitted by ``itop``) stands in ``ctx``: a
+    state's name (success, failure, running, ...), or "unfinished" when it has none."""
+    facts = [f for _m, f, _n in ctx.facts() if type(f) is Root and isinstance(f.head, Const)]
+    top = {V.rq(f).request for f in facts if f.head.name == V.RQ and show(V.rq(f).emitter) == "itop"}
+    for f in facts:
+        if f.head.name == V.RS and V.rs(f).request in top:
+            return STATE_NAMES.get(V.rs(f).state.head.name, "?")
+    return "unfinished"
+
+
 def collect_result(model, ctx, steps, events, quiescent, narrator) -> RunResult:
     outcome, ec = "unfinished", []
     final: dict = {}

@@ -27,12 +27,14 @@ from __future__ import annotations
 
 import random
 import re
+from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 from ..clf.printer import show
 from ..clf.terms import Root
 from ..errors import Pos, RoarError
+from ..explore.replay import read_as, returned_values
 from .activity import CallResult
 from .sim import classify
 
@@ -72,14 +74,8 @@ class ModelReplay:
         (success, failure, ...), or "unfinished"; None when it did not replay."""
         if self.final is None:
             return None
-        from ..roar import vocabulary as V
-        from ..roar.run import STATE_NAMES
-        top = {V.rq(f).request for _m, f, _n in self.final.facts()
-               if type(f) is Root and f.head.name == V.RQ and show(V.rq(f).emitter) == "itop"}
-        for _m, f, _n in self.final.facts():
-            if type(f) is Root and f.head.name == V.RS and V.rs(f).request in top:
-                return STATE_NAMES.get(V.rs(f).state.head.name, "?")
-        return "unfinished"
+        from ..roar.run import outside_request_state
+        return outside_request_state(self.final)
 
     @property
     def ok(self) -> bool:
@@ -99,41 +95,27 @@ def _printed(step) -> tuple[list, list]:
             [show(f) for _m, f in step.produced if type(f) is Root])
 
 
-_RETURN = re.compile(r"^return (.+) \S+$")
-
-
-def _returned(facts: list) -> list[str]:
-    """The values of the ``return V D`` facts among printed facts, in order."""
-    return [m.group(1) for m in map(_RETURN.match, facts) if m]
-
-
-def _abstracted(fact: str, stands_for: dict) -> str:
-    """A printed fact of the trace with each value the robot answered written as the outcome
-    that stands for it wrote it (compound values only: a bare constant is too common to swap)."""
-    for robot_v, model_v in stands_for.items():
-        fact = fact.replace(robot_v, model_v)
-    return fact
-
-
 def _differing(want: tuple, got: tuple) -> tuple[list, list]:
     """The consumed and produced facts of two printed steps that the other lacks (fresh names
     compared by their hint: each side numbers its own), as lines for a divergence."""
     robot, model = [], []
     for label, w, g in (("consumed", want[0], got[0]), ("produced", want[1], got[1])):
-        gs = [_FRESH.sub("#", x) for x in g]
-        ws = [_FRESH.sub("#", x) for x in w]
-        for x, xs in zip(w, ws):
-            if xs in gs:
-                gs.remove(xs)
-            else:
-                robot.append(f"{label}: {x}")
-        ws = [_FRESH.sub("#", x) for x in w]
-        for x, xs in zip(g, [_FRESH.sub("#", y) for y in g]):
-            if xs in ws:
-                ws.remove(xs)
-            else:
-                model.append(f"{label}: {x}")
+        ws, gs = [_FRESH.sub("#", x) for x in w], [_FRESH.sub("#", x) for x in g]
+        robot += [f"{label}: {x}" for x in _unmatched(w, ws, gs)]
+        model += [f"{label}: {x}" for x in _unmatched(g, gs, ws)]
     return robot, model
+
+
+def _unmatched(facts: list, keys: list, others: list) -> list:
+    """The facts whose key is not among ``others`` (each key of ``others`` matching once)."""
+    left = list(others)
+    out = []
+    for x, k in zip(facts, keys):
+        if k in left:
+            left.remove(k)
+        else:
+            out.append(x)
+    return out
 
 
 def _score(want: tuple, got: tuple) -> tuple[int, int]:
@@ -250,7 +232,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
             # the value the robot answered and the one the outcome stands for it with: in the
             # steps after, the trace's facts hold the first where the model's hold the second
             _nxt, step = prog.successor(state, best[0])
-            for robot_v, model_v in zip(_returned(want[1]), _returned(_printed(step)[1])):
+            for robot_v, model_v in zip(returned_values(want[1]), returned_values(_printed(step)[1])):
                 if robot_v != model_v and robot_v.startswith("("):
                     stands_for[robot_v] = model_v
             state = best[1]
@@ -265,7 +247,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
         choice, nxt, exact = best_match(cands, state, prog, want)
         if not exact and stands_for:
             # the same up to the values the outcomes abstract (a position read as "moving")
-            choice, nxt, exact = best_match(cands, state, prog, tuple([_abstracted(x, stands_for) for x in w]
+            choice, nxt, exact = best_match(cands, state, prog, tuple([read_as(x, stands_for) for x in w]
                                                                        for w in want))
         if not exact:
             # the model takes this rule here, but not on the facts the trace records (a value, a
@@ -295,7 +277,6 @@ def replay_robot_trace(trace, header: dict, records: list, model, functional=Non
     theirs = header.get("spec_fingerprint")
     if theirs and theirs != mine and not force:
         named = header.get("spec")
-        from pathlib import Path
         if isinstance(named, str) and Path(named).name != Path(model).name:
             raise RoarError(f"{trace}: the trace was made from {named}, not {model} (the sources differ): replay "
                             f"it on the spec it was made from, or pass --force to try it on this one")

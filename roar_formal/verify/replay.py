@@ -12,19 +12,18 @@ declared outcome rule that gives the same answer (see :class:`_Replayed`).
 
 from __future__ import annotations
 
-from fractions import Fraction
-
 import re
+from fractions import Fraction
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
 
 from ..clf.context import Context
 from ..clf.program import Program
-from ..clf.terms import Const, Root
 from ..clf.query import show_context
 from ..errors import Pos, RoarError
-from ..explore.replay import FRESH_NAME, ReplayResult, match_renaming, replay_steps, start_index, trace_name
+from ..explore.replay import (FRESH_NAME, ReplayResult, match_renaming, read_as, replay_steps, returned_values,
+                              start_index, trace_name)
 from ..explore.system import ClfSystem, Options
 from .claims import claim_groups, confirm_claim
 from ..roar.compile import CRASH_RULES, CompiledModel, compile_spec
@@ -318,10 +317,7 @@ class _Replayed:
         def swap(fact):
             if not isinstance(fact, str):
                 return fact
-            fact = _OPAQUE.sub(lambda m: self.opaque.get(m.group(0), m.group(0)), fact)
-            for run_v, model_v in self.stands_for.items():
-                fact = fact.replace(run_v, model_v)
-            return fact
+            return read_as(_OPAQUE.sub(lambda m: self.opaque.get(m.group(0), m.group(0)), fact), self.stands_for)
         return {**rec, **{k: [swap(f) for f in rec[k]] for k in ("consumed", "produced")
                           if isinstance(rec.get(k), list)}}
 
@@ -401,7 +397,7 @@ class _Replayed:
             return None
         owner, name = self.compiled.functions[fc]
         prim = self.compiled.registry.lookup(name, owner)
-        returned = [m.group(1) for m in map(_RETURN.match, want[1]) if m]
+        returned = returned_values(want[1])
         if prim is None or len(returned) != 1 or len(want[1]) != 1:
             return None   # (an answer that also writes cells: not abstracted)
         value = _python_value(returned[0])
@@ -417,12 +413,12 @@ class _Replayed:
         for succ, kept, budget in outcomes:
             if succ.label not in {f"outcome_{fc}_{n}" for n in names} or len(kept[1]) != 1:
                 continue
-            m = _RETURN.match(kept[1][0])
-            if m is None:
+            model_v = returned_values(kept[1])
+            if not model_v:
                 continue
-            if m.group(1) != returned[0] and returned[0].startswith("("):
-                self.stands_for[returned[0]] = m.group(1)
-            produced = [f"return {m.group(1)} {want[1][0].rsplit(' ', 1)[1]}"]
+            if model_v[0] != returned[0] and returned[0].startswith("("):
+                self.stands_for[returned[0]] = model_v[0]
+            produced = [f"return {model_v[0]} {want[1][0].rsplit(' ', 1)[1]}"]
             self.abstracted += 1
             return {**rec, "rule": succ.label, "consumed": list(want[0]) + budget[0], "produced": produced + budget[1]}
         return None
@@ -484,10 +480,7 @@ class _Replayed:
 
 
 _OPAQUE = re.compile(r"\(vopq \d+\)")
-_RETURN = re.compile(r"^return (.+) \S+$")
 _NO_VALUE = object()
-
-
 
 
 def _python_value(printed: str):
@@ -501,6 +494,8 @@ def _python_value(printed: str):
     if printed in ("(vbool tt)", "(vbool ff)"):
         return printed == "(vbool tt)"
     return _NO_VALUE
+
+
 _PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
 
 
@@ -565,17 +560,11 @@ def _step_rule(rec: dict) -> str:
 
 def _confirm_run(header: dict, res: ReplayResult, labels: tuple) -> Optional[tuple[bool, str]]:
     """A run's trace claims how its request ended (``outcome``): does the replay end so too?"""
-    from ..roar import vocabulary as V
-    from ..roar.run import STATE_NAMES
+    from ..roar.run import outside_request_state
     recorded = header.get("outcome")
     if not isinstance(recorded, str) or not labels:
         return None
-    ended = "unfinished"
-    for _mode, f, _n in res.states[-1].facts():
-        if type(f) is Root and isinstance(f.head, Const) and f.head.name == V.RS:
-            x = V.rs(f)
-            if labels[0].get(x.request) == "R0":
-                ended = STATE_NAMES.get(x.state.head.name, "?")
+    ended = outside_request_state(res.states[-1])
     if ended != recorded:
         return False, (f"the run's trace records that its request ended {_ending(recorded)}, but on this model it "
                        f"ends {_ending(ended)}")
