@@ -65,8 +65,6 @@ class ModelReplay:
     steps: int                       # robot steps replayed
     divergence: Optional[Divergence]
     outcomes: list                   # (step, function, outcome) of every functional-layer answer
-    approximate: int = 0             # steps matched by rule name with different values (none: such a
-                                     # step is a divergence)
     final: object = None             # the model's state after the last step (when it replayed)
 
     def ended(self) -> Optional[str]:
@@ -182,7 +180,6 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
     start = next(d for d in prog.sig.directives if hasattr(d, "start"))
     state = prog.start_context(start.start)
     outcomes = []
-    approx = 0
     n = 0
     stands_for: dict = {}   # a value the robot answered (printed) -> the outcome's value for it
     for rec in records:
@@ -197,7 +194,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
             if not isinstance(call, dict) or not isinstance(call.get("result"), dict):
                 return ModelReplay(n, Divergence(int(rec.get("step", n)), rule,
                                                  "a functional-layer step without its call record", want[0], []),
-                                   outcomes, approx)
+                                   outcomes)
             fname = str(call.get("function", "?"))
             owner, _, name = fname.rpartition("::")
             prim = registry.lookup(name, owner or None)
@@ -217,7 +214,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                     int(rec.get("step", n)), rule,
                     f"the robot's result of {fname} is covered by no declared outcome",
                     [f"{fname}({', '.join(map(str, call.get('args', [])))}) -> {call['result']}"],
-                    [f"declared outcomes of {fname}: {declared}"]), outcomes, approx)
+                    [f"declared outcomes of {fname}: {declared}"]), outcomes)
             labels = [f"outcome_{fc}_{o}" for o in names]
             cands = [c for c in choices if c.rule in labels]
             if not cands:
@@ -226,7 +223,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                     f"the model cannot answer {fname} with outcome {names[0]} here",
                     [f"{fname} -> {names[0]}"] + want[0],
                     [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing'}"]),
-                    outcomes, approx)
+                    outcomes)
             best = best_match(cands, state, prog, want, by_pending=True)
             outcomes.append((n, fname, _oname(best[0].rule, fc)))
             # the value the robot answered and the one the outcome stands for it with: in the
@@ -243,7 +240,7 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                 int(rec.get("step", n)), str(rule), "the model cannot take this rule here",
                 [f"consumed: {x}" for x in want[0]] + [f"produced: {x}" for x in want[1]],
                 [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing (quiescent)'}"]),
-                outcomes, approx)
+                outcomes)
         choice, nxt, exact = best_match(cands, state, prog, want)
         if not exact and stands_for:
             # the same up to the values the outcomes abstract (a position read as "moving")
@@ -256,9 +253,9 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
             robot_only, model_only = _differing(want, _printed(step))
             return ModelReplay(n, Divergence(
                 int(rec.get("step", n)), str(rule), "the model takes this rule on other facts than the trace records "
-                "(the facts both have are left out)", robot_only, model_only), outcomes, approx)
+                "(the facts both have are left out)", robot_only, model_only), outcomes)
         state = nxt
-    return ModelReplay(n, None, outcomes, approx, state)
+    return ModelReplay(n, None, outcomes, state)
 
 
 def replay_robot_trace(trace, header: dict, records: list, model, functional=None, force: bool = False) \
