@@ -19,7 +19,7 @@ from ..errors import Pos, TypeError_, UnsupportedError
 from . import surface as S
 from .parser import parse_program
 from .builtins import BUILTIN_FAMILIES, BUILTIN_TYPES, BUILTINS, is_builtin, kind_of
-from .printer import IMPLICIT, show
+from .printer import show
 from .terms import (NUMBER, STRING, Aff, Bang, BVar, Const, EVar, Exists, Imp, Lam, Monad, Node, One, Param, Pi, Root,
                     Tensor, Top, Type, TypeNode, With, abstract, apply, deref, free_evars, num_term, param_term,
                     string_term, subst, subst1, zonk)
@@ -123,6 +123,8 @@ class Elaborator:
         self.strict = strict
         self.proof = False
         self.usage: dict = {}
+        # implicit-argument counts of the constants declared so far (how messages print terms)
+        self.implicit = {info.const: info.implicit for info in sig.consts.values()}
 
     # ------------------------------------------------------------ entry points
     def declare(self, d: S.Decl) -> ConstInfo:
@@ -166,7 +168,7 @@ class Elaborator:
             definition = Root(Const(d.name), ())
         info = ConstInfo(d.name, Const(d.name), cls, n, is_family, d.pos, definition, proof=proof)
         self.sig.consts[d.name] = info
-        IMPLICIT[info.const] = n
+        self.implicit[info.const] = n
         return info
 
     def query(self, q: S.Query) -> QueryDirective:
@@ -217,7 +219,8 @@ class Elaborator:
             )
 
     def _show(self, t: Node) -> str:
-        return show(zonk(t), [n for n, _ in self.bound]) if not t.maxp else show(zonk(self._close(t)), [n for n, _ in self.bound])
+        names = [n for n, _ in self.bound]
+        return show(zonk(t) if not t.maxp else zonk(self._close(t)), names, implicit=self.implicit)
 
     def _close(self, t: Node) -> Node:
         return abstract(zonk(t), [p for _, p in self.bound]) if self.bound else t

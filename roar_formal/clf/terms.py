@@ -786,8 +786,8 @@ def _mentions_below(t: Node, k: int) -> bool:
 # finite decimal prints as ``1/3``, which does not read back. Printing is iterative over argument
 # spines so that a unary numeral of depth 40,000 prints without hitting Python's recursion limit.
 
-#: number of leading implicit arguments of each constant (filled by the signature)
-IMPLICIT: dict[Const, int] = {}
+#: no implicit arguments hidden (a term printed outside any program shows every argument)
+_NO_IMPLICIT: dict = {}
 
 _IMP = {"!": "->", "1": "-o", "@": "-@"}
 
@@ -799,12 +799,14 @@ def show(t: Node, names: list[str] | None = None, show_implicit: bool = False,
          implicit: dict | None = None) -> str:
     """Render a term or type; ``names`` are the bound names, innermost last.
 
-    ``implicit`` is the program's table of implicit-argument counts (a
-    program's own table keeps its printing independent of programs loaded
-    later); without it the table of the most recent declarations is used.
+    ``implicit`` is a program's table of implicit-argument counts (``Program.implicit``;
+    ``Program.show`` passes it): the arguments it counts are hidden. Without it every
+    argument prints. There is no process-wide table: constants are interned by name, and two
+    programs may declare one name with different implicit arguments (a table of the latest
+    declarations made a run's facts print differently once another program was loaded).
     """
     out: list[str] = []
-    _render(t, list(names or []), _P_BINDER, out, show_implicit, IMPLICIT if implicit is None else implicit)
+    _render(t, list(names or []), _P_BINDER, out, show_implicit, _NO_IMPLICIT if implicit is None else implicit)
     return "".join(out)
 
 

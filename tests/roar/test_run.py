@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from roar_formal.clf.printer import show
+from roar_formal.clf.program import Program
 from roar_formal.clf.terms import const
 from roar_formal.errors import RoarError
 from roar_formal.roar.functional import functional_module, load_registry
@@ -319,3 +320,16 @@ def test_every_roar_event_is_one_clf_step_of_the_run(case, faults):
 def test_runs_are_reproducible_under_a_seed():
     a, b = run(NAV, 11, ["lidar_ok"]), run(NAV, 11, ["lidar_ok"])
     assert [e.text for e in a.events] == [e.text for e in b.events]
+
+
+def test_a_run_prints_its_steps_whatever_other_programs_declare():
+    """Constants are interned by name, and miniml.clf declares ``contains`` with an implicit
+    argument: a run's steps print ``contains CELL VALUE`` after it was loaded as before (the
+    printing of a term once depended on the latest program declaring its constant)."""
+    shape = lambda steps: [(r, sorted(_FRESH.sub("#", x) for x in c), sorted(_FRESH.sub("#", x) for x in ps))
+                           for r, c, ps in steps]
+    before = run(CONFLICT, 2).steps
+    Program.from_file(ROOT / "models" / "clf" / "miniml.clf")
+    after = run(CONFLICT, 2).steps
+    assert any(p.startswith("contains v_ptu_heading ") for _r, _c, ps in after for p in ps)
+    assert shape(after) == shape(before)
