@@ -183,12 +183,21 @@ def _numbered_key(ctx: Context, rounds: int) -> bytes:
         counts[k] = counts.get(k, 0) + n
     if not params:
         return _compact(counts)
-    colour = dict.fromkeys(params, 0)
-    ncolours = 1
+    colour, ncolours = _refine(pitems, dict.fromkeys(params, 0), 1, rounds, False)
+    if ncolours == len(colour):
+        return _numbered(pitems, colour, counts)
+    return _individualised(pitems, colour, counts, rounds)
+
+
+def _refine(pitems: list, colour: dict, ncolours: int, rounds: int, keep: bool) -> tuple[dict, int]:
+    """Colour refinement of the names of ``pitems`` for at most ``rounds`` rounds, from
+    ``colour``: a name's new colour hashes the multiset of its occurrences (the shape of each
+    hypothesis it occurs in under the current colours, and its position there), and with
+    ``keep`` its own colour too (after an individualisation, which no occurrence shows)."""
     smemo = _shape_memo
     for _ in range(rounds):
         memo: dict = {}
-        occ: dict = {p: [] for p in params}
+        occ: dict = {p: [] for p in colour}
         for kind, mode, payload, n, pl, shapes, one, p0 in pitems:
             if p0 is not None:  # one term, one name: _shape_of inlined
                 sh = smemo.get((one, colour[p0]))
@@ -209,14 +218,68 @@ def _numbered_key(ctx: Context, rounds: int) -> bytes:
             for pos, ps in pl:
                 for p in ps:
                     occ[p].append((sh, pos))
-        new = {p: hash(tuple(sorted(o))) for p, o in occ.items()}
+        if keep:
+            new = {p: hash((colour[p], tuple(sorted(o)))) for p, o in occ.items()}
+        else:
+            new = {p: hash(tuple(sorted(o))) for p, o in occ.items()}
         nnew = len(set(new.values()))
         stable = nnew == ncolours
         colour = new
         ncolours = nnew
         if stable or nnew == len(colour):
             break   # the partition no longer refines (or every parameter is told apart)
-    memo = {}
+    return colour, ncolours
+
+
+#: leaves of the individualisation search (``_individualised``) tried per key at most
+_LEAVES = 32
+
+
+def _individualised(pitems: list, colour: dict, static: dict, rounds: int) -> bytes:
+    """The key of a state whose refined colouring keeps a tie: names of one colour that
+    refinement cannot tell apart, as in two continuations of one rule each holding a fresh name
+    with a fact of its own. Numbering them in the order the context happens to hold them gave
+    isomorphic states different keys. Instead each name of the smallest tied colour is given a
+    colour of its own in turn and the colouring refined again, recursively until no tie is left;
+    the key is the least of the keys of those leaves. The cell chosen at each level and the
+    leaves' keys depend on the state up to renaming alone, so isomorphic states get one key. The
+    search stops after ``_LEAVES`` leaves (a tie among many interchangeable names, which would
+    need a factorial of them): the least key found then is still a renaming of the state (never
+    merging different states), but two isomorphic states may again get two keys."""
+    best: list = [None]
+    left = [_LEAVES]
+
+    def go(colour: dict) -> None:
+        cells: dict = {}
+        for p, c in colour.items():
+            cells.setdefault(c, []).append(p)
+        tied = [ps for ps in cells.values() if len(ps) > 1]
+        if not tied or left[0] <= 1:
+            left[0] -= 1
+            key = _numbered(pitems, colour, static)
+            if best[0] is None or key < best[0]:
+                best[0] = key
+            return
+        cell = min(tied, key=lambda ps: (len(ps), colour[ps[0]]))
+        mark = hash((colour[cell[0]], "individual"))
+        for p in cell:
+            if left[0] <= 0:
+                return
+            new = dict(colour)
+            new[p] = mark
+            new, _n = _refine(pitems, new, len(cells) + 1, rounds, True)
+            go(new)
+
+    go(colour)
+    return best[0]
+
+
+def _numbered(pitems: list, colour: dict, static: dict) -> bytes:
+    """The key: the hypotheses with names sorted by their shapes under ``colour``, the names
+    numbered by first occurrence in that order, the renamed hypotheses counted with ``static``."""
+    counts = dict(static)
+    memo: dict = {}
+    smemo = _shape_memo
     for kind, mode, payload, n, pl, shapes, one, p0 in pitems:
         if p0 is not None:
             sh = smemo.get((one, colour[p0]))

@@ -1,5 +1,7 @@
 """States as values: equal up to renaming of fresh names, never merged otherwise."""
 
+from hypothesis import given, settings, strategies as st
+
 from roar_formal.clf.program import Program
 from roar_formal.clf.state import canonical_key
 
@@ -56,3 +58,77 @@ def test_successor_leaves_the_state_unchanged():
     assert canonical_key(ctx) == before
     assert step.rule == "mk"
     assert canonical_key(after) != before
+
+
+# ---------------------------------------------------------------- keys of scrambled copies
+
+# Two continuations of one rule, each holding fresh names of its own (one of them with a fact
+# of its own too): refinement leaves the names tied, and numbering them in the order the
+# context held them gave isomorphic states two keys.
+TIED = """k : type. k0 : k. k1 : k.
+p : k -> type. c0 : k -> type. c2 : k -> type. c3 : k -> type.
+r2 : c2 X -o {Exists n22:k. Exists n23:k. c0 n22 * !(Pi y24:k. c0 y24 -o {p n23 * p k0})}.
+r3 : c3 Y -o {c2 k1}.
+#exec * @c3 k0 * @c3 k0.
+"""
+
+
+def _scrambled(ctx, rnd):
+    """A copy of ``ctx`` with its fresh names renamed (new names) and its facts and rules put
+    in in another order: isomorphic to ``ctx`` by construction."""
+    from roar_formal.clf.context import Context
+    from roar_formal.clf.terms import Node, Param, params_of
+    from roar_formal.clf.state import _rename
+
+    names: dict = {}
+    for _m, t, _n in ctx.facts():
+        params_of(t, names)
+    for r in ctx.rules.values():
+        for v in r.env:
+            if isinstance(v, Node):
+                params_of(v, names)
+    ren = {p: Param(p.hint) for p in names}
+    new = lambda t: _rename(t, ren, {}) if isinstance(t, Node) else t
+    items = [("f", m, t) for m, t, n in ctx.facts() for _ in range(n)]
+    items += [("r", r, None) for r in ctx.rules.values()]
+    rnd.shuffle(items)
+    out = Context()
+    out.implicit = ctx.implicit
+    for kind, a, b in items:
+        if kind == "f":
+            out.add_fact(new(b), a)
+        else:
+            out.add_rule(a.alts, tuple(new(v) for v in a.env), a.mode, new(a.source))
+    return out
+
+
+def _reached(src: str, limit: int = 400):
+    from roar_formal.explore.search import Budget, Explorer
+    from roar_formal.explore.system import ClfSystem, Options
+
+    prog = Program.from_text(src)
+    ex = Explorer(ClfSystem(prog, prog.start_context(prog.sig.directives[-1].start), Options()))
+    g = ex.run(Budget(max_states=limit, max_seconds=20))
+    return [ex.states[s] for s in range(g.n_states)]
+
+
+def test_isomorphic_states_with_tied_names_in_rules_get_one_key():
+    import random
+    rnd = random.Random(3)
+    states = _reached(TIED)
+    tied = [s for s in states if len(s.rules) == 2]
+    assert tied
+    for s in tied:
+        for _ in range(6):
+            assert canonical_key(_scrambled(s, rnd)) == canonical_key(s)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.randoms(use_true_random=False))
+def test_every_reached_state_and_its_scrambled_copies_have_one_key(rnd):
+    """Leveled random programs (fresh names in facts and in rules of every mode, nested): each
+    state reached, rebuilt with new names in a random order, keeps its key."""
+    from leveled import leveled_program
+
+    for s in _reached(leveled_program(rnd), 150):
+        assert canonical_key(_scrambled(s, rnd)) == canonical_key(s)

@@ -17,6 +17,7 @@ from roar_formal.explore.search import Budget, Explorer
 from roar_formal.explore.system import ClfSystem, Options
 from roar_formal.verify.replay import replay
 
+from leveled import leveled_program
 from repo import ROOT
 
 _spec = importlib.util.spec_from_file_location("phil_gen", ROOT / "models/philosophers/generate.py")
@@ -314,86 +315,12 @@ def test_the_audits_programs_keep_their_quiescent_states(name):
     assert got is not None
 
 
-# Leveled programs (from the reduction's audit): every rule consumes a level token c_i and makes
-# only lower levels, so every program terminates; facts in all three modes, several copies, rules
-# put in the context at depth (with `&`, affine or linear), fresh names, rules in the start
-# state. Persistent rules holding fresh names are left out: their states' keys are not canonical
-# (two keys for one state up to renaming), which the key comparison here would take for a bug.
-_DATA = ["p", "q", "r"]
-_LEVELS = 4
-_LEVELED_HEADER = ("k : type. k0 : k. k1 : k.\n" + "".join(f"{f} : k -> type.\n" for f in _DATA)
-                   + "".join(f"c{i} : k -> type.\n" for i in range(_LEVELS)))
-
-
-class _Leveled:
-    def __init__(self, rnd):
-        self.R, self.nv = rnd, 0
-
-    def mode(self, lin=6, pers=2, aff=1) -> str:
-        return self.R.choices(["", "!", "@"], weights=[lin, pers, aff])[0]
-
-    def rule(self, lev: int, scope: list, top: bool) -> str:
-        R = self.R
-        newv: list = []
-
-        def var() -> str:
-            if top:
-                v = R.choice(["X", "Y"])
-            else:
-                self.nv += 1
-                v = f"y{self.nv}"
-            if v not in newv and v not in scope:
-                newv.append(v)
-            return v
-        prem = [f"c{lev} {var() if R.random() < 0.8 else R.choice(['k0', 'k1'] + scope)}"]
-        for _ in range(R.choice([0, 1, 1, 2])):
-            a = var() if R.random() < 0.4 else R.choice(["k0", "k1"] + scope + newv)
-            prem.append(f"{self.mode()}{R.choice(_DATA)} {a}")
-        R.shuffle(prem)
-        body = " * ".join(prem) + " -o {" + self.head(lev, scope + newv) + "}"
-        return body if top else "".join(f"Pi {v}:k. " for v in newv) + body
-
-    def head(self, lev: int, scope: list) -> str:
-        R = self.R
-        fresh = []
-        for _ in range(R.choice([0, 0, 1, 1, 2])):
-            self.nv += 1
-            fresh.append(f"n{self.nv}")
-        sc = scope + fresh
-        items = [f"{self.mode(6, 1, 1)}{R.choice(_DATA)} {R.choice(['k0', 'k1'] + sc)}"
-                 for _ in range(R.choice([0, 1, 1, 2, 2]))]
-        if lev > 0:
-            for _ in range(R.choice([0, 1, 1, 2])):
-                items.append(f"{'@' if R.random() < 0.15 else ''}c{R.randrange(lev)} {R.choice(['k0', 'k1'] + sc)}")
-            if R.random() < 0.6:
-                for _ in range(R.choice([1, 1, 2])):
-                    j = R.randrange(lev)
-                    alts = [self.rule(j, sc, False) for _ in range(R.choice([1, 1, 2]))]
-                    t = f"({alts[0]})" if len(alts) == 1 else "(" + " & ".join(f"({x})" for x in alts) + ")"
-                    items.append(("@" if R.random() < 0.1 else "") + t)
-        txt = " * ".join(items)
-        toks = set(txt.replace("(", " ").replace(")", " ").replace("{", " ").replace("}", " ").split())
-        return "".join(f"Exists {n}:k. " for n in fresh if n in toks) + (txt or "1")
-
-    def program(self) -> str:
-        R = self.R
-        levs = [R.randrange(1, _LEVELS) for _ in range(R.randint(2, 4))]
-        rules = [f"r{i} : " + self.rule(lev, [], True) + "." for i, lev in enumerate(levs)]
-        start = [f"{'@' if R.random() < 0.15 else ''}c{R.choice(levs)} {R.choice(['k0', 'k1'])}"
-                 for _ in range(R.randint(2, 4))]
-        start += [f"{self.mode(5, 2, 1)}{R.choice(_DATA)} {R.choice(['k0', 'k1'])}" for _ in range(R.randint(0, 4))]
-        if R.random() < 0.3:
-            start.append("(" + self.rule(R.randrange(1, _LEVELS), [], False) + ")")
-        R.shuffle(start)
-        return _LEVELED_HEADER + "".join(r + "\n" for r in rules) + "#exec * " + " * ".join(start) + ".\n"
-
-
 @settings(max_examples=100, deadline=None)
 @given(st.randoms(use_true_random=False))
 def test_leveled_random_programs_keep_their_deadlocks(rnd):
     """(400 such programs: every one keeps its quiescent states, about a quarter with a smaller
     graph; before the audit's fixes 12 of the 400 lost a quiescent state.)"""
-    same_deadlocks(_Leveled(rnd).program(), Budget(max_states=800, max_seconds=3))
+    same_deadlocks(leveled_program(rnd), Budget(max_states=800, max_seconds=3))
 
 
 # ------------------------------------------------------------ counterexamples replay
