@@ -5,9 +5,11 @@ run to run, so two contexts that differ only by a renaming must be one state.
 :func:`canonical_key` renames parameters to canonical ones in an order fixed
 by the context's shape: parameters are coloured by where they occur (colour
 refinement, a few rounds), facts are sorted by their coloured shape, and
-parameters are numbered by first occurrence in that order. The result is
-always a renaming of the context (so distinct states are never merged);
-isomorphic contexts get the same key except in highly symmetric ties.
+parameters are numbered by first occurrence in that order. Names refinement
+cannot tell apart are individualised one at a time (the least key of the
+search's leaves, at most ``_LEAVES`` of them). The result is always a renaming
+of the context (so distinct states are never merged); isomorphic contexts get
+the same key unless a tie needs more leaves than that.
 """
 
 from __future__ import annotations
