@@ -10,6 +10,7 @@ come back to the state where it started.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass, field
 from typing import Callable, Optional
@@ -58,12 +59,15 @@ def start_index(path, header: dict) -> int:
 def replay_steps(path, program: Program, start: int, steps: list[dict],
                  on_step: Optional[Callable[[int, dict, Context], None]] = None,
                  notes: Optional[list[str]] = None,
-                 make_system: Optional[Callable[[Program, Context], ClfSystem]] = None) -> ReplayResult:
+                 make_system: Optional[Callable[[Program, Context], ClfSystem]] = None,
+                 stands_for: Optional[dict] = None) -> ReplayResult:
     """Replay the recorded ``steps`` of the trace at ``path`` on ``program`` from its
     ``start``-th ``#exec`` directive. ``on_step(i, record, state)`` sees each step as the engine
     took it (rule, group, consumed, produced come from the engine, not from the file).
     ``make_system`` builds the system to step (a front end's, with its monitors); by default the
-    engine's plain :class:`ClfSystem`."""
+    engine's plain :class:`ClfSystem`. ``stands_for`` (printed answered value -> printed value of
+    the outcome read for it; it may grow as the steps are read) lets a recorded fact hold an
+    answered value where the model holds the outcome's (:func:`reads_as`)."""
     notes = notes if notes is not None else []
     execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
     if start > len(execs):
@@ -88,7 +92,7 @@ def replay_steps(path, program: Program, start: int, steps: list[dict],
             if succ.label != rec.get("rule"):
                 continue
             d = system.describe_step(succ.step)
-            m = match_renaming(want, (d["consumed"], d["produced"]), names)
+            m = match_renaming(want, (d["consumed"], d["produced"]), names, stands_for)
             if m is not None:
                 names = m
                 nxt = succ
@@ -120,9 +124,11 @@ def replay_steps(path, program: Program, start: int, steps: list[dict],
 FRESH_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_']*#\d+")
 
 
-def match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
+def match_renaming(want: tuple, got: tuple, names: dict, stands_for: Optional[dict] = None) -> Optional[dict]:
     """Do the recorded facts equal the replayed ones up to a consistent renaming of fresh
-    names (``hint#id``)? Returns the extended renaming, or None."""
+    names (``hint#id``)? Returns the extended renaming, or None. With ``stands_for`` a recorded
+    fact may also hold values an answer gave where the replayed one holds the value of the
+    outcome that stands for them (:func:`reads_as`)."""
     for w, g in zip(want, got):
         if len(w) != len(g):
             return None
@@ -137,7 +143,7 @@ def match_renaming(want: tuple, got: tuple, names: dict) -> Optional[dict]:
             return True
         w = w_lines[0]
         for k, g in enumerate(g_lines):
-            if shape(g) != shape(w):
+            if shape(g) != shape(w) and not (stands_for and reads_as(shape(w), shape(g), stands_for)):
                 continue
             wn, gn = FRESH_NAME.findall(w), FRESH_NAME.findall(g)
             added = []
@@ -173,6 +179,34 @@ _RETURN = re.compile(r"^return (.+) \S+$")
 def returned_values(facts: list) -> list[str]:
     """The values of the ``return V D`` facts among printed facts, in order."""
     return [m.group(1) for m in map(_RETURN.match, facts) if m]
+
+
+def reads_as(recorded: str, replayed: str, stands_for: dict) -> bool:
+    """Is ``replayed`` the ``recorded`` fact with some of the values an answer gave (the keys of
+    ``stands_for``) written as the value of the outcome that stands for them? Occurrence by
+    occurrence: an answer of 4 read as the outcome's 5 leaves a goal of 4 elsewhere in the same
+    fact as it is (a blanket replacement read that goal as 5 too)."""
+    if recorded == replayed:
+        return True
+    keys = sorted((k for k in stands_for if k in recorded), key=len, reverse=True)
+    if not keys:
+        return False
+    return _occurrences_pattern(recorded, tuple((k, stands_for[k]) for k in keys)).fullmatch(replayed) is not None
+
+
+@functools.lru_cache(maxsize=4096)
+def _occurrences_pattern(recorded: str, pairs: tuple) -> "re.Pattern":
+    """A pattern of ``recorded`` in which each occurrence of an answered value may also be its
+    outcome's value (longer values first, so a struct is one occurrence)."""
+    alts = {k: f"(?:{re.escape(k)}|{re.escape(v)})" for k, v in pairs}
+    find = re.compile("|".join(re.escape(k) for k, _v in pairs))
+    out, at = [], 0
+    for m in find.finditer(recorded):
+        out.append(re.escape(recorded[at:m.start()]))
+        out.append(alts[m.group(0)])
+        at = m.end()
+    out.append(re.escape(recorded[at:]))
+    return re.compile("".join(out))
 
 
 def read_as(fact: str, stands_for: dict) -> str:

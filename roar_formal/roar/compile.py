@@ -418,6 +418,7 @@ class CompiledModel:
     request_cst: str = ""
     request_agent: str = ""
     structs: dict[str, list[str]] = field(default_factory=dict)          # type -> field names
+    opaques: set[str] = field(default_factory=set)                       # opaque types (agent::name)
     field_types: dict[str, dict[str, str]] = field(default_factory=dict)
     functional: str = "abstract"
     where_cells: dict[str, list[str]] = field(default_factory=dict)      # cst -> cells its where clause writes
@@ -1443,6 +1444,8 @@ class _Compiler:
                     key = f"{ag.name}::{td.name}"
                     m.structs[key] = [f.name for f in td.fields]
                     self.field_types[key] = {f.name: self.checked.structs[key][f.name] for f in td.fields}
+                elif isinstance(td, a.OpaqueType):
+                    m.opaques.add(f"{ag.name}::{td.name}")
         self.initial_values()
         o = self.out
         o.append(Comment("\n================================================================ compiled spec"))

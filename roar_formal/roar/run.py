@@ -184,6 +184,12 @@ class Values:
         self.opaque: list = []
 
     def term(self, v, ty: Optional[str] = None):
+        """The term of a value of the spec's type ``ty``. A value of an opaque type is a handle
+        whatever Python object it is (a planner's tuple, a number): the spec cannot look into
+        it, so the model's outcomes stand for it (a run's trace replays), and the functional
+        layer gets the same object back."""
+        if ty is not None and ty in self.model.opaques:
+            return self._handle(v)
         if isinstance(v, bool):
             return const("vbool", const("tt" if v else "ff"))
         if isinstance(v, (int, Fraction)):
@@ -203,6 +209,9 @@ class Values:
             return const("vrec", self.list([self.term(x) for x in vals]))
         if isinstance(v, (tuple, list)):
             return const("vrec", self.list([self.term(x) for x in v]))
+        return self._handle(v)
+
+    def _handle(self, v):
         self.opaque.append(v)
         return const("vopq", num_term(len(self.opaque)))
 

@@ -22,7 +22,7 @@ from ..clf.context import Context
 from ..clf.program import Program
 from ..clf.query import show_context
 from ..errors import Pos, RoarError
-from ..explore.replay import (FRESH_NAME, ReplayResult, match_renaming, read_as, replay_steps, returned_values,
+from ..explore.replay import (FRESH_NAME, ReplayResult, match_renaming, reads_as, replay_steps, returned_values,
                               start_index, trace_name)
 from ..explore.system import ClfSystem, Options
 from .claims import claim_groups, confirm_claim
@@ -219,7 +219,8 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
             return ClfSystem(prog, begin, Options())
     replayed = _Replayed(path, header, records, compiled, on_step)
     try:
-        res = replay_steps(path, program, start, replayed.steps(), replayed.on_step, notes, replayed.wrap(make_system))
+        res = replay_steps(path, program, start, replayed.steps(), replayed.on_step, notes, replayed.wrap(make_system),
+                           stands_for=replayed.stands_for)
     except RoarError as exc:
         raise replayed.explain(exc) from None
     if replayed.abstracted:
@@ -305,19 +306,20 @@ class _Replayed:
                 if self.taken != k or self.system is None:   # replay_steps takes each step before the next
                     raise RuntimeError("replay: a functional-layer step read before the steps preceding it")
                 rec = self.answer(rec)
-            elif self.opaque or self.stands_for:
+            elif self.opaque:
                 rec = self._unopaque(rec)
             self.current = rec
             yield rec
 
     def _unopaque(self, rec: dict) -> dict:
         """``rec`` with the opaque values the run's functional layer made (``vopq K``: a Python
-        object the spec cannot look into) as the model's outcomes made them, and the values an
-        outcome covers as that outcome wrote them."""
+        object the spec cannot look into) as the model's outcomes made them. (The values an
+        outcome covers are not rewritten: a recorded fact is matched occurrence by occurrence,
+        see ``reads_as``.)"""
         def swap(fact):
             if not isinstance(fact, str):
                 return fact
-            return read_as(_OPAQUE.sub(lambda m: self.opaque.get(m.group(0), m.group(0)), fact), self.stands_for)
+            return _OPAQUE.sub(lambda m: self.opaque.get(m.group(0), m.group(0)), fact)
         return {**rec, **{k: [swap(f) for f in rec[k]] for k in ("consumed", "produced")
                           if isinstance(rec.get(k), list)}}
 
@@ -342,7 +344,8 @@ class _Replayed:
             if not succ.label.startswith("outcome_"):
                 continue
             d = self.system.describe_step(succ.step)
-            if not any(_shape(f) == _shape(call) for f in d["consumed"] if f.startswith("pending ")):
+            if not any(reads_as(_shape(call), _shape(f), self.stands_for) for f in d["consumed"]
+                       if f.startswith("pending ")):
                 continue   # an outcome of another call
             kept = tuple([f for f in d[k] if not f.startswith(_BUDGET)] for k in ("consumed", "produced"))
             budget = tuple([f for f in d[k] if f.startswith(_BUDGET)] for k in ("consumed", "produced"))
@@ -354,7 +357,7 @@ class _Replayed:
             if made is None:
                 continue
             got = tuple([_OPAQUE.sub(lambda m: made.get(m.group(0), m.group(0)), f) for f in w] for w in want)
-            if _same_facts(got, kept):
+            if _same_facts(got, kept, self.stands_for):
                 self.opaque.update(made)
                 return {**rec, "rule": succ.label, "consumed": got[0] + budget[0], "produced": got[1] + budget[1]}
         covered = self._covered(rec, want, call, fc, outcomes)
@@ -400,13 +403,13 @@ class _Replayed:
         returned = returned_values(want[1])
         if prim is None or len(returned) != 1 or len(want[1]) != 1:
             return None   # (an answer that also writes cells: not abstracted)
-        value = _python_value(returned[0])
+        rty = self.compiled.fn_types.get(fc)
+        value = _python_value(returned[0], rty, self.compiled)
         if value is _NO_VALUE:
-            return None   # a struct or a string: its parts would be read as other values in the steps after
+            return None   # an opaque handle (the outcomes' own handles stand for it), or no value
         from ..roar.functional import value_fits
         from ..robot.activity import CallResult
         from ..robot.sim import classify
-        rty = self.compiled.fn_types.get(fc)
         if not value_fits(value, rty):
             return None   # a value of another type than the function's: no outcome stands for it
         names = classify(prim.outcomes, CallResult(value), rty)
@@ -483,27 +486,71 @@ _OPAQUE = re.compile(r"\(vopq \d+\)")
 _NO_VALUE = object()
 
 
-def _python_value(printed: str):
-    """The Python value of a printed answer (a number or a boolean), or _NO_VALUE."""
-    m = re.fullmatch(r"\(vnum (-?\d+)(?:/(\d+))?\)", printed)
-    if m:
-        return int(m.group(1)) if m.group(2) is None else Fraction(int(m.group(1)), int(m.group(2)))
-    m = re.fullmatch(r"\(vnum (-?\d+\.\d+)\)", printed)
-    if m:
-        return Fraction(m.group(1))
-    if printed in ("(vbool tt)", "(vbool ff)"):
-        return printed == "(vbool tt)"
+def _python_value(printed: str, ty: Optional[str], model: CompiledModel):
+    """The Python value of a printed answer of the spec's type ``ty`` (a number, a boolean, a
+    string, a list, a struct as a dict by field name), or _NO_VALUE (an opaque handle, text
+    that is no value)."""
+    from ..clf.parser import parse_expr
+    try:
+        e = parse_expr(printed, "<trace>")
+    except RoarError:
+        return _NO_VALUE
+    return _value_of(e, ty, model)
+
+
+def _list_elements(e) -> Optional[list]:
+    """The elements of a printed list ``vcons X (vcons Y vnil)`` (None: not a list)."""
+    from ..clf import surface as S
+    out = []
+    while isinstance(e, S.App) and isinstance(e.fn, S.App) and isinstance(e.fn.fn, S.Id) and e.fn.fn.name == "vcons":
+        out.append(e.fn.arg)
+        e = e.arg
+    return out if isinstance(e, S.Id) and e.name == "vnil" else None
+
+
+def _value_of(e, ty: Optional[str], model: CompiledModel):
+    """The Python value of a parsed printed value (see ``_python_value``)."""
+    from ..clf import surface as S
+    whole = e
+    args = []
+    while isinstance(e, S.App):
+        args.append(e.arg)
+        e = e.fn
+    args.reverse()
+    name = e.name if isinstance(e, S.Id) else None
+    if name == "vnum" and len(args) == 1 and isinstance(args[0], (S.Num, S.One)):
+        v = args[0].value if isinstance(args[0], S.Num) else Fraction(1)   # (`1` reads as CLF's unit)
+        return int(v) if v.denominator == 1 and ty != "double" else v
+    if name == "vbool" and len(args) == 1 and isinstance(args[0], S.Id) and args[0].name in ("tt", "ff"):
+        return args[0].name == "tt"
+    if name == "vstr" and len(args) == 1 and isinstance(args[0], S.Str):
+        return args[0].value
+    if name in ("vnil", "vcons"):
+        elems = _list_elements(whole)
+        vals = [_value_of(x, None, model) for x in elems] if elems is not None else [_NO_VALUE]
+        return _NO_VALUE if _NO_VALUE in vals else vals
+    if name == "vrec" and len(args) == 1:
+        elems = _list_elements(args[0])
+        fields = model.structs.get(ty) if ty is not None else None
+        if elems is None or (fields is not None and len(fields) != len(elems)):
+            return _NO_VALUE
+        if fields is None:
+            vals = [_value_of(x, None, model) for x in elems]
+            return _NO_VALUE if _NO_VALUE in vals else tuple(vals)
+        types = model.field_types.get(ty, {})
+        got = {f: _value_of(x, types.get(f), model) for f, x in zip(fields, elems)}
+        return _NO_VALUE if any(v is _NO_VALUE for v in got.values()) else got
     return _NO_VALUE
 
 
 _PLAIN = re.compile(r"[A-Za-z0-9_'#.-]{1,200}")
 
 
-def _same_facts(want: tuple, got: tuple) -> bool:
+def _same_facts(want: tuple, got: tuple, stands_for: Optional[dict] = None) -> bool:
     """Are the (consumed, produced) facts ``want`` those of ``got``, fresh names aside, under one
     renaming of them (one to one)? (Which fresh names of the replay the trace's stand for, across
     the steps, :func:`replay_steps` checks when it takes the step.)"""
-    return match_renaming(want, got, {}) is not None
+    return match_renaming(want, got, {}, stands_for) is not None
 
 
 def _opaque_made(recorded: list, produced: list, known: dict) -> Optional[dict]:

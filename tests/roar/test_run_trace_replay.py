@@ -236,3 +236,35 @@ def test_an_answer_an_outcome_covers_replays_as_that_outcome(tmp_path):
     bad.write_text("\n".join([header] + [json.dumps(r) for r in records]) + "\n", encoding="utf-8")
     with pytest.raises(RoarError, match="is none that a declared outcome"):
         replay(bad, ROOT / "models" / "spa_loop.roar")
+
+
+def test_a_run_with_struct_and_opaque_answers_replays(tmp_path):
+    """mana_nav's planner returns a Python tuple for an opaque ``trajectory`` (a handle the
+    model's outcome stands for, not a record), and odometry a point struct that the outcome
+    ``en_route`` covers (written (0, 0) by the model) while the run's robot is at (0.6, 0.8):
+    the run's trace replays step for step and confirms the outcome. The distance answered then
+    (4.2, 3.2, ...: 'far', written 5 by the model) is read as 5 only where the answer went, not
+    in the goal (3, 4) the same facts hold (a blanket rewrite read the goal as (3, 5))."""
+    spec = load_spec(MODELS / "mana_nav.roar")
+    run = spec.run("locomotion::arrived == true where locomotion::gx == 3.0 && locomotion::gy == 4.0")
+    assert run.ok
+    assert any(re.fullmatch(r"planner::traj = <opaque \d+>", e.text) for e in run.events)
+    trace = run.save_trace(tmp_path / "nav.jsonl")
+    rep = replay(trace, MODELS / "mana_nav.roar")
+    assert rep.confirmed is True and rep.steps == run.clf_steps
+    note = " ".join(rep.notes)
+    assert "(vrec (vcons (vnum 0.6) (vcons (vnum 0.8) vnil))) as (vrec (vcons (vnum 0) (vcons (vnum 0) vnil)))" in note
+    assert "(vnum 4) as (vnum 5)" in note
+
+
+def test_answered_values_are_read_occurrence_by_occurrence():
+    from roar_formal.explore.replay import reads_as
+    four = {"(vnum 4)": "(vnum 5)"}
+    assert reads_as("ctl (vnum 4) (vrec (vnum 3) (vnum 4))", "ctl (vnum 5) (vrec (vnum 3) (vnum 4))", four)
+    assert reads_as("ctl (vnum 4) (vnum 4)", "ctl (vnum 4) (vnum 4)", four)
+    assert not reads_as("ctl (vnum 4) (vnum 4)", "ctl (vnum 5) (vnum 6)", four)
+    assert not reads_as("ctl (vnum 3)", "ctl (vnum 5)", four)
+    # a struct answered is one occurrence: its parts are not read apart
+    pt = {"(vrec (vnum 4) (vnum 4))": "(vrec (vnum 0) (vnum 0))", **four}
+    assert reads_as("p (vrec (vnum 4) (vnum 4)) (vnum 4)", "p (vrec (vnum 0) (vnum 0)) (vnum 5)", pt)
+    assert not reads_as("p (vrec (vnum 4) (vnum 4))", "p (vrec (vnum 5) (vnum 4))", pt)
