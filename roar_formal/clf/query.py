@@ -287,7 +287,9 @@ def with_big_stack(fn, *args, **kwargs):
     sys.setrecursionlimit(max(old_limit, 200_000))
     threading.stack_size(512 * 1024 * 1024)
     try:
-        t = threading.Thread(target=target)
+        # a daemon: when the caller is interrupted (Ctrl-C, SIGTERM unwinding as SystemExit), the
+        # process exits without waiting for the search to end
+        t = threading.Thread(target=target, daemon=True)
         t.start()
         t.join()
     finally:

@@ -212,11 +212,15 @@ class Elaborator:
 
     def _unify(self, a: Node, b: Node, pos: Pos, what: str) -> None:
         if not self.u.unify(a, b):
-            raise TypeError_(
-                f"type mismatch in {what}",
-                pos,
-                [f"expected: {self._show(a)}", f"found:    {self._show(b)}"],
-            )
+            raise TypeError_(f"type mismatch in {what}", pos, self._mismatch(a, b))
+
+    def _mismatch(self, want: Node, got: Node) -> list[str]:
+        """The notes of a type mismatch: both types, and what ``T`` is when one of them is it."""
+        notes = [f"expected: {self._show(want)}", f"found:    {self._show(got)}"]
+        if any(type(zonk(t)) is Top for t in (want, got)):
+            notes.append("'T' is CLF's top type (the unit of &), never a variable (and CLF has no type "
+                         "variables: index by a type of type codes, e.g. 'tp : type.')")
+        return notes
 
     def _show(self, t: Node) -> str:
         names = [n for n, _ in self.bound]
@@ -795,8 +799,7 @@ class Elaborator:
         if not self.u.unify(ty, got):
             # name the argument by its text: "_describe" would only say "an application"
             what = _describe(e) if isinstance(e, S.Id) else f"'{self._show(term)}'"
-            raise TypeError_(f"type mismatch in the argument {what}", e.pos,
-                             [f"expected: {self._show(ty)}", f"found:    {self._show(got)}"])
+            raise TypeError_(f"type mismatch in the argument {what}", e.pos, self._mismatch(ty, got))
         return term
 
 

@@ -120,6 +120,9 @@ def main(argv: list[str] | None = None) -> None:
     except RoarError as exc:
         _print_error(f"[bold red]error:[/] {_escape(exc.format())}")
         sys.exit(2)
+    except KeyboardInterrupt:   # Ctrl-C where no command says more (a command that can, says what it had)
+        _print_error("[yellow]interrupted[/]")
+        sys.exit(130)
     except Exception as exc:  # a bug of ours, not the user's: short message, traceback on request
         if isinstance(exc, OSError) and exc.filename is not None and exc.errno in _PATH_ERRNOS:
             # a path the user gave that the system refuses (too long, a loop of links, no permission,

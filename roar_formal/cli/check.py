@@ -148,7 +148,7 @@ def register(app: typer.Typer) -> None:
             if not as_json:
                 names = ", ".join(f"{r.name} ({', '.join(r.incomplete)})" for r in results if r.incomplete)
                 console.print(styled(("incomplete: ", "yellow"), f"{names}: a budget ran out before a verdict; "
-                                     "raise the job's [bounds] (exit status 4)"), soft_wrap=True)
+                                     "raise the bounds (--max-states, --max-seconds, or a job's [bounds]) (exit status 4)"), soft_wrap=True)
             raise typer.Exit(4)
 
     @app.command("replay")

@@ -31,7 +31,7 @@ def register(app: typer.Typer) -> None:
                                                   help="Functional-layer module (default: SPEC.py next to the spec)."),
         trace: Optional[Path] = typer.Option(None, "--trace", help="Write the robot trace (JSON Lines) here."),
         png: Optional[Path] = typer.Option(None, "--png", help="Draw the map, planned paths and trajectory here."),
-        max_steps: int = typer.Option(200_000, "--max-steps", help="Stop after this many CLF steps."),
+        max_steps: int = typer.Option(200_000, "--max-steps", min=1, help="Stop after this many CLF steps."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the CLF rule of each event."),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     ) -> None:
@@ -76,7 +76,7 @@ def register(app: typer.Typer) -> None:
         no_random_faults: bool = typer.Option(False, "--no-random-faults",
                                               help="Do not draw fault points at random."),
         functional: Optional[Path] = typer.Option(None, "--functional", help="Functional-layer module."),
-        max_steps: int = typer.Option(200_000, "--max-steps", help="CLF step bound of each run."),
+        max_steps: int = typer.Option(200_000, "--max-steps", min=1, help="CLF step bound of each run."),
         as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
     ) -> None:
         """Check the spec's declared outcomes against the robot: N seeded runs with random faults.

@@ -37,7 +37,7 @@ def register(app: typer.Typer) -> None:
                                  "wait, assert and ensure with a discrete clock (docs/semantics.md, Time)."),
         wait_timeout: Optional[int] = typer.Option(None, "--wait-timeout", help="Timed only: a wait with a period "
                                                    "gives up after this many milliseconds (a local failure)."),
-        max_steps: int = typer.Option(100_000, "--max-steps", help="Stop after this many CLF steps."),
+        max_steps: int = typer.Option(100_000, "--max-steps", min=1, help="Stop after this many CLF steps."),
         trace: Optional[Path] = typer.Option(None, "--trace", help="Write the JSON Lines trace here."),
         fair: bool = typer.Option(False, "--fair", help="Fair round-robin scheduling instead of seeded random."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the CLF rule of each event."),

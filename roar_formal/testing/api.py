@@ -1118,7 +1118,8 @@ class Exploration:
         out = {"job": r.job.name, "file": str(r.job.path),
                "model": str(r.job.model if not r.job.is_roar else r.job.spec), "ok": r.ok,
                "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states,
-               "transitions": r.graph.n_edges + r.graph.n_unrecorded, "complete": bool(r.graph.complete), "seconds": round(r.seconds, 4),
+               "transitions": r.graph.n_edges + r.graph.n_unrecorded, "complete": bool(r.graph.complete),
+               "incomplete": list(self.incomplete), "seconds": round(r.seconds, 4),
                "memory_mb": round(r.memory_mb, 1), "mismatches": r.mismatches, "verdicts": {}}
         robot = self.robot
         if robot is not None:

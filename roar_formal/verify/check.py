@@ -25,7 +25,7 @@ from ..explore.system import ClfSystem, Options
 from .cluster import cluster_note
 from .explorers import make_explorer, run_search
 from .jobs import Job
-from .models import load_model, make_accept, make_never, reduction_options
+from .models import load_model, make_accept, make_never, mark_defaults, reduction_options
 from .results import JobResult, counterexample_steps, roar_events, save_counterexample
 from .roar_jobs import run_roar_job
 from .robot import run_robot_job   # the robot is the functional layer
@@ -119,6 +119,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
             backend += cluster_note(_explorer)
     mark_reduction(job, verdicts, reduction)
     mark_symmetry(sym, verdicts, graph)
+    mark_defaults(props, verdicts)
     mismatches = []
     for p, want in job.expect.items():
         got = verdicts[p].status

@@ -99,6 +99,7 @@ class Job:
     spec: Optional[Path] = None        # a ROAR spec (instead of a .clf model)
     request: Optional[str] = None      # the request the spec is run on
     request_at: Optional[Pos] = None   # where its text is written (errors inside it are reported there)
+    start_at: Optional[Pos] = None     # where 'start' is written
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
     robot: Optional[RobotSetup] = None  # robot-backed: the reference robot is the functional layer
     crashes: Any = None                 # [faults]: roar.compile.Crashes, the agents that may crash (None: none)
@@ -613,6 +614,7 @@ def load_job(path: str | Path) -> Job:
         job = Job(path=path, name=str(d.get("name", path.stem)), model=model)
     if "start" in d:
         job.start = _typed(d, "start", int, path, "a job file")
+        job.start_at = Pos(str(path), _line_of(path, "start"), 1)
         if job.start < 1:
             raise RoarError("'start' counts #exec directives from 1", Pos(str(path), _line_of(path, "start"), 1))
     props = d.get("properties", [])
@@ -923,7 +925,7 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
         job.request = request
         job.request_at = Pos("--request", 1, 1)
     job.props = PropertySpec(check=list(dict.fromkeys(wanted)), sources=["command line"],
-                             defaulted=spec and not properties)
+                             defaulted=not properties)
     return job
 
 

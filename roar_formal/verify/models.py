@@ -22,8 +22,8 @@ def load_model(job: Job) -> tuple[Program, Context]:
     if not execs:
         raise RoarError(f"{job.model} has no #exec directive to start the search from", None)
     if job.start > len(execs):
-        raise RoarError(f"{job.path}: 'start = {job.start}' but {job.model.name} has only {len(execs)} #exec "
-                        "directive(s)")
+        raise RoarError(f"'start = {job.start}' but {job.model.name} has only {len(execs)} #exec directive(s)",
+                        job.start_at)
     return program, program.start_context(execs[job.start - 1].start)
 
 

@@ -1,0 +1,84 @@
+"""Edges of the command line a reviewer found: interrupts, bounds, located job errors, default
+markers, what ``--json`` says of a search that ran out of budget, what ``T`` is in CLF."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from repo import ROOT
+
+LOOP = "a : type. r : a -o {a}. #exec * a.\n"   # runs forever
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_endless_run_stops_on_an_interrupt_without_a_traceback(tmp_path, sig):
+    """The search runs in a thread with a big stack; the process must not wait for it once the
+    main thread is interrupted (it did for SIGTERM), and Ctrl-C prints no traceback (it did for
+    ``clf``, which bypasses the command framework)."""
+    (tmp_path / "loop.clf").write_text(LOOP, encoding="utf-8")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NO_COLOR": "1"}
+    p = subprocess.Popen([sys.executable, "-m", "roar_formal.cli", "clf", "loop.clf"], cwd=tmp_path, env=env,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(3)
+    assert p.poll() is None   # still running: the loop does not end by itself
+    p.send_signal(sig)
+    out, err = p.communicate(timeout=30)
+    assert "Traceback" not in err and "Traceback" not in out
+    assert p.returncode == (130 if sig == signal.SIGINT else 128 + signal.SIGTERM)
+    if sig == signal.SIGINT:
+        assert "interrupted" in err
+
+
+@pytest.mark.parametrize("command", ["run", "simulate"])
+@pytest.mark.parametrize("bound", ["0", "-5"])
+def test_a_step_bound_must_be_positive(roar_cli, command, bound):
+    code, out, err = roar_cli(command, ROOT / "models" / "spa_loop.roar", "-r", "exec::arrived == true",
+                              "--max-steps", bound)
+    assert code == 2 and "--max-steps" in out + err and "success" not in out
+
+
+def test_a_start_past_the_models_exec_directives_is_located(roar_cli, tmp_path):
+    (tmp_path / "m.clf").write_text("a : type.\n#exec * a.\n", encoding="utf-8")
+    (tmp_path / "j.toml").write_text('model = "m.clf"\nstart = 5\n[expect]\ndeadlock = "violated"\n',
+                                     encoding="utf-8")
+    code, out, err = roar_cli("check", tmp_path / "j.toml")
+    assert code == 2
+    assert f"{tmp_path / 'j.toml'}:2:1: 'start = 5' but m.clf has only 1 #exec directive(s)" in out + err
+
+
+def test_the_default_property_of_a_program_is_marked(roar_cli, tmp_path):
+    code, out, _err = roar_cli("check", ROOT / "models" / "philosophers" / "dl.clf", "--traces", tmp_path)
+    assert code == 1
+    assert "deadlock: violated" in out and "(a default property)" in out
+    code, out, _err = roar_cli("check", ROOT / "models" / "philosophers" / "dl.clf", "--property", "deadlock",
+                               "--traces", tmp_path)
+    assert code == 1 and "(a default property)" not in out
+
+
+def test_json_names_the_properties_a_budget_left_without_a_verdict(roar_cli, tmp_path):
+    code, out, _err = roar_cli("check", ROOT / "models" / "philosophers" / "ok.clf", "--max-states", "50", "--json",
+                               "--traces", tmp_path)
+    assert code == 4
+    (job,) = json.loads(out)
+    assert job["complete"] is False and job["incomplete"] == ["deadlock"]
+    code, out, _err = roar_cli("check", ROOT / "models" / "philosophers" / "ok.clf", "--max-states", "50",
+                               "--traces", tmp_path)
+    assert code == 4 and "--max-states" in out
+
+
+def test_a_mismatch_with_top_says_what_T_is(roar_cli, tmp_path):
+    (tmp_path / "t.clf").write_text("q : type. a : q.\nf : T -> type.\ng : f a -> type.\n", encoding="utf-8")
+    code, out, err = roar_cli("clf", tmp_path / "t.clf")
+    assert code == 2
+    assert "t.clf:3:7: type mismatch in the argument 'a'" in out + err
+    assert "'T' is CLF's top type" in out + err
+    (tmp_path / "u.clf").write_text("q : type. a : q.\nf : U -> type.\n", encoding="utf-8")
+    code, out, err = roar_cli("clf", tmp_path / "u.clf")
+    assert code == 2 and "'U' is a variable, not a type family (CLF has no type variables)" in out + err
