@@ -499,8 +499,8 @@ def _simple_args(ty, end_is_type: bool) -> Optional[tuple[list[str], Any]]:
 
 def _signature(sig: Union[str, ClfModel, Any]) -> _Sig:
     from ..clf.program import Program
-    if isinstance(sig, ClfModel):
-        program, text = sig.program, sig.path.read_text(encoding="utf-8")
+    if isinstance(sig, ClfModel):   # (a model made from text has it; its scratch file may not exist yet)
+        program, text = sig.program, sig.text if sig.text is not None else sig.path.read_text(encoding="utf-8")
     elif isinstance(sig, Program):
         program, text = sig, None
     elif isinstance(sig, str):
@@ -532,7 +532,12 @@ def _signature(sig: Union[str, ClfModel, Any]) -> _Sig:
         shape = _simple_args(i.classifier, True)
         if shape is not None and all(x in depth for x in shape[0]) and n not in base | set(_BUILTIN_TYPES):
             preds[n] = shape[0]
-    return _Sig(cons, preds, depth, text if text is not None else "")
+    if text is None:   # a Program: its text is not kept; the simple declarations the programs drawn use
+        arrow = lambda args, end: " -> ".join([*args, end])
+        text = "\n".join([f"{b} : type." for b in base if b not in _BUILTIN_TYPES]
+                         + [f"{n} : {arrow(args, ty)}." for ty, cs in cons.items() for n, args in cs]
+                         + [f"{n} : {arrow(args, 'type')}." for n, args in preds.items()]) + "\n"
+    return _Sig(cons, preds, depth, text)
 
 
 def _term(draw, s: _Sig, ty: str, depth: int) -> str:

@@ -231,3 +231,14 @@ def test_clf_programs_shrink_to_one_rule_and_one_fact():
     assert m.text.endswith("r0 : p (num z) -o {1}.\n#exec * p (num z).\n")
     with pytest.raises(InvalidArgument, match="declares no predicate"):
         clf_programs("nat : type. z : nat.")
+
+
+@pytest.mark.parametrize("given_as", ["model from text", "program"])
+def test_a_signature_given_as_a_model_from_text_or_a_program_draws_programs_that_type_check(given_as):
+    """A ClfModel made from text has no file yet (it read the missing scratch file), and a
+    Program keeps no text (its programs were drawn without their declarations)."""
+    src = SIG + "p : exp -> type.\n"
+    sig = ClfModel.from_text(src + "#exec * p (num z).\n") if given_as == "model from text" else Program.from_text(src)
+    m = find(clf_programs(sig), lambda m: "plus" in m.text, settings=FIND)
+    assert m.program is not None and m.start == m.starts   # (the drawn #exec, after any the signature has)
+    assert find(clf_terms(sig, "exp"), lambda t: "plus" in t, settings=FIND) == "plus (num z) (num z)"
