@@ -196,7 +196,7 @@ def replay_step_lines(rep, i: int, verbose: bool = False, always: bool = False) 
         out.add("    -- cycle (repeats forever) --", style="yellow")
     clf = f"{', '.join(rec['consumed'])} -> {', '.join(rec['produced'])}"
     if rep.compiled is None:
-        out.add((f"  {i:>4}. ", "bold"), f"{s['rule']} ", (f"[{s['group']}]", "dim"), f"  {clf}")
+        out.add((f"  {i:>4}. ", "bold"), (f"[{s['group']}] ", "dim"), f"{s['rule']}", f"  {clf}")   # as check prints it
         return out
     shown = [ev for ev in s["events"] if ev["kind"] != "write"]
     rule = [(f"  ({s['rule']})", "dim")] if verbose else []

@@ -91,7 +91,7 @@ def test_a_clf_deadlock_is_confirmed_and_a_cut_one_is_not(tmp_path, roar_cli):
     model = ROOT / "models" / "philosophers" / "dl.clf"
     code, out, _err = roar_cli("replay", trace, "--model", model)
     assert code == 0 and "confirmed: the final state is a deadlock: no step is enabled" in out
-    assert "take_first [p1]" in out                    # a .clf model's steps stay CLF steps
+    assert "[p1] take_first" in out                    # a .clf model's steps stay CLF steps (as check prints them)
     cut = truncated(trace, res.verdicts["deadlock"].counterexample.length() - 1, tmp_path / "cut.jsonl")
     code, out, _err = roar_cli("replay", cut, "--model", model)
     # with p0..p3 holding their first fork, p4 can take its first, and p3 its second (p4's, still free)
