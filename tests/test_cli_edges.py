@@ -24,12 +24,20 @@ def test_an_endless_run_stops_on_an_interrupt_without_a_traceback(tmp_path, sig)
     ``clf``, which bypasses the command framework)."""
     (tmp_path / "loop.clf").write_text(LOOP, encoding="utf-8")
     env = {**os.environ, "PYTHONPATH": str(ROOT), "NO_COLOR": "1"}
+    # (the child gets the default handling of SIGINT: a test worker may run with it ignored, which
+    # a child inherits, and Python then installs no Ctrl-C handler)
     p = subprocess.Popen([sys.executable, "-m", "roar_formal.cli", "clf", "loop.clf"], cwd=tmp_path, env=env,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(3)
-    assert p.poll() is None   # still running: the loop does not end by itself
-    p.send_signal(sig)
-    out, err = p.communicate(timeout=30)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        time.sleep(3)
+        assert p.poll() is None   # still running: the loop does not end by itself
+        p.send_signal(sig)
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
     assert "Traceback" not in err and "Traceback" not in out
     assert p.returncode == (130 if sig == signal.SIGINT else 128 + signal.SIGTERM)
     if sig == signal.SIGINT:
