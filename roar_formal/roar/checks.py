@@ -87,6 +87,10 @@ def _fmt(e: a.Expr) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+#: statements written like a call (`ensrue(x == 1)` is a call of an unknown function)
+_CALL_KEYWORDS = ("make", "ensure", "wait", "assert", "abort")
+
+
 def _did_you_mean(name: str, candidates) -> str:
     close = difflib.get_close_matches(name, sorted(set(candidates)), n=1, cutoff=0.75)
     return f"; did you mean '{close[0]}'?" if close else ""
@@ -507,7 +511,7 @@ class _Checker:
     @staticmethod
     def _mix_hint(x: Ty, y: Ty) -> str:
         if {x, y} == {"int", "double"}:
-            return "; int and double never mix: write a double literal as 1.0, not 1"
+            return "; int and double never mix: an int is written 1, a double 1.0"
         return ""
 
     def ty(self, e: a.Expr, sc: _Scope) -> Ty:
@@ -620,7 +624,7 @@ class _Checker:
                 self.err("unknown-function", e.pos, f"unknown function '{e.name}'"
                          + (f": agent '{ag.name}' declares no such function or task, and no imported "
                             f"agent exports one" if ag is not None else "")
-                         + _did_you_mean(e.name, names + list(a.BUILTINS)))
+                         + _did_you_mean(e.name, names + list(a.BUILTINS) + list(_CALL_KEYWORDS)))
                 return None
         if sig is None:  # pragma: no cover - every declared function has a signature
             return None
@@ -686,7 +690,7 @@ class _Checker:
                 if lt != rt:
                     self.err("int-double", e.op_pos, f"'{op}' mixes int and double ('{_fmt(e.left)}' is {lt}, "
                                                       f"'{_fmt(e.right)}' is {rt}); there is no implicit "
-                                                      f"conversion: write a double literal as 1.0, not 1")
+                                                      f"conversion: an int is written 1, a double 1.0")
                     return None if op in a.ARITH_OPS else "bool"
                 return result
             self.err("type", e.op_pos, f"'{op}' needs two ints or two doubles, not {_show(lt)} and {_show(rt)}")

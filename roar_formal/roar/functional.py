@@ -402,12 +402,14 @@ def _check_primitive(spec: a.Spec, prim: Primitive, owner: Optional[str],
                 f"the callable bound to '{prim.name}' takes {takes} argument{'s' if high != 1 else ''}, "
                 f"but agent '{owner}' declares '{decl.name}' with {k}", decl.pos))
     if decl is not None:
-        ty = decl.result.name
+        table = type_table(spec)
+        ty = resolve_type(spec, owner, decl.result)
         for o in prim.outcomes:
-            if o.result is not None and not value_fits(o.result, ty):
+            why = misfit(o.result, ty, table) if o.result is not None else None
+            if why is not None:
                 errors.append(RoarError(
                     f"outcome '{o.name}' of primitive '{prim.name}' returns {o.result!r}, but "
-                    f"'{decl.name}' is declared to return {ty}{_wanted(ty)}", decl.pos))
+                    f"'{decl.name}' is declared to return {decl.result}: {why}", decl.pos))
     if owner is not None:
         errors += _check_writes(spec, prim, owner, decl.pos if decl else None)
     return errors
@@ -425,12 +427,82 @@ def _check_writes(spec: a.Spec, prim: Primitive, owner: str, pos: Optional[Pos])
                     f"outcome '{o.name}' of primitive '{prim.name}' writes '{var}', which is not a "
                     f"variable of agent '{agent}'", pos))
                 continue
-            ty = ag.var(name).type.name
-            if not value_fits(value, ty):
+            tref = ag.var(name).type
+            why = misfit(value, resolve_type(spec, agent, tref), type_table(spec))
+            if why is not None:
                 errors.append(RoarError(
                     f"outcome '{o.name}' of primitive '{prim.name}' writes {value!r} to '{var}', which is "
-                    f"{ty}{_wanted(ty)}", pos))
+                    f"{tref}: {why}", pos))
     return errors
+
+
+def resolve_type(spec: a.Spec, agent: Optional[str], t: a.TypeRef) -> Optional[str]:
+    """A type as written in ``agent``'s scope, qualified (``agent::T``) unless it is a base type;
+    None when it names no declared type (the static checks say so)."""
+    if t.agent is not None:
+        return f"{t.agent}::{t.name}"
+    if t.name in a.BASE_TYPES:
+        return t.name
+    ag = spec.agent(agent) if agent else None
+    if ag is not None and ag.type_decl(t.name) is not None:
+        return f"{ag.name}::{t.name}"
+    owners = [b.name for b in spec.agents if b.type_decl(t.name) is not None]
+    return f"{owners[0]}::{t.name}" if len(owners) == 1 else None
+
+
+def type_table(spec: a.Spec) -> dict:
+    """The declared types of a spec, by qualified name: ("struct", [(field, its type), ...]),
+    ("new", its base type) or ("opaque",)."""
+    out: dict = {}
+    for ag in spec.agents:
+        for td in ag.types:
+            q = f"{ag.name}::{td.name}"
+            if isinstance(td, a.StructType):
+                out[q] = ("struct", [(f.name, resolve_type(spec, ag.name, f.type)) for f in td.fields])
+            elif isinstance(td, a.NewType):
+                out[q] = ("new", resolve_type(spec, ag.name, td.base))
+            else:
+                out[q] = ("opaque",)
+    return out
+
+
+def misfit(value, ty: Optional[str], table: dict) -> Optional[str]:
+    """Why a Python value cannot stand for a value of the spec's type ``ty`` (qualified, see
+    :func:`type_table`), or None when it can: a base type's Python type, a struct's fields (a dict
+    by field name, a tuple or list in field order, or an object with those attributes) each
+    fitting its type, a newtype's base; an opaque type takes any object."""
+    if ty is None:
+        return None
+    if ty in _PY_TYPES:
+        return None if value_fits(value, ty) else f"expected {_PY_TYPES[ty]}"
+    kind = table.get(ty)
+    if kind is None or kind[0] == "opaque":
+        return None
+    if kind[0] == "new":
+        return misfit(value, kind[1], table)
+    fields = kind[1]
+    names = [f for f, _t in fields]
+    if isinstance(value, dict):
+        missing = [n for n in names if n not in value]
+        extra = [str(k) for k in value if k not in names]
+        if missing or extra:
+            return (f"a struct {ty} has the fields {', '.join(names)}"
+                    + (f"; missing: {', '.join(missing)}" if missing else "")
+                    + (f"; not a field: {', '.join(extra)}" if extra else ""))
+        items = [value[n] for n in names]
+    elif isinstance(value, (tuple, list)):
+        if len(value) != len(names):
+            return f"a struct {ty} has {len(names)} fields ({', '.join(names)}), not {len(value)}"
+        items = list(value)
+    elif any(not hasattr(value, n) for n in names) or isinstance(value, (bool, int, float, str, Fraction)):
+        return f"expected a struct {ty}: a dict with the fields {', '.join(names)}"
+    else:
+        items = [getattr(value, n) for n in names]
+    for (n, fty), v in zip(fields, items):
+        why = misfit(v, fty, table)
+        if why is not None:
+            return f"field '{n}': {why}"
+    return None
 
 
 #: the spec's base types a Python value is checked against (others, structs and newtypes, are not)

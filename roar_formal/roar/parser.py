@@ -413,8 +413,16 @@ def parse_expr(text: str, file: str = "<input>") -> a.Expr:
 
 
 def parse_constraint(text: str, file: str = "<input>") -> a.Constraint:
-    """Parse a constraint (a request): ``expr [where a == b && ...]``."""
-    return _run(text, file, "lone_constraint")
+    """Parse a constraint (a request): ``expr [where a == b && ...]``. A bare boolean variable
+    ``x`` is read as ``x == true`` and ``!x`` as ``x == false``: the form tasks' post-conditions
+    take, so that the logic layer finds the tasks that achieve it (it proves comparisons)."""
+    c = _run(text, file, "lone_constraint")
+    e, value = c.expr, True
+    if isinstance(e, a.Unary) and e.op == "!" and isinstance(e.operand, (a.Name, a.Remote)):
+        e, value = e.operand, False
+    if isinstance(e, (a.Name, a.Remote)):
+        c = dataclasses.replace(c, expr=a.Binary("==", e, a.BoolLit(value, pos=e.pos), pos=e.pos, op_pos=e.pos))
+    return c
 
 
 def parse_task(text: str, file: str = "<input>", name: str = "") -> a.Task:
@@ -843,8 +851,24 @@ def _hints(e: UnexpectedToken, expected: set[str]) -> list[str]:
     return hints
 
 
+def _glued(e: UnexpectedToken, file: str) -> Optional[SyntaxError_]:
+    """A keyword glued to the name after it (`prefered`, `bodys`): the contextual lexer, where
+    only keywords may stand, read `prefer` and then `ed`. Said as the whole word the user wrote."""
+    tok = e.token
+    stack = _stack(e)
+    prev = stack[-1] if stack else None
+    if not (isinstance(prev, Token) and tok.type == "ID" and prev.type in _literals()
+            and str(prev).isidentifier() and getattr(prev, "end_pos", None) == tok.start_pos):
+        return None
+    return SyntaxError_(f"unexpected name '{prev}{tok}' (did you mean '{prev}'?)",
+                        Pos(file, prev.line or 1, prev.column or 1))
+
+
 def _convert(e: UnexpectedInput, text: str, file: str) -> SyntaxError_:
     if isinstance(e, UnexpectedToken):
+        glued = _glued(e, file)
+        if glued is not None:
+            return glued
         tok = e.token
         expected = _accepted(e)
         if tok.type == "$END":

@@ -30,7 +30,7 @@ from .compile import CRASH_RULES, CompiledModel, Crashes, num_lit
 
 #: the clock's rule in a timed model (docs/semantics.md, Time): a run takes it when nothing else can happen
 TICK_RULE = "tick"
-from .functional import Outcome, Registry, value_fits
+from .functional import Outcome, Registry, misfit, type_table
 from . import vocabulary as V
 from .pretty import string_literal
 
@@ -244,6 +244,7 @@ class Resolver:
         self.registry = registry
         self.faults = faults
         self.values = values
+        self.types = type_table(model.spec)   # (what a callable's result is checked against)
         self.calls: dict[str, int] = {}
         self.used: set[Fault] = set()
 
@@ -292,8 +293,9 @@ class Resolver:
                 raise primitive_error(self.model, fc, prim, py, exc) from None
             if rty is None or v is None and rty != "bool":
                 return const("vunit"), "done", {}
-            if not value_fits(v, rty):
-                raise primitive_result_error(self.model, fc, prim, py, v, rty)
+            why = misfit(v, rty, self.types)
+            if why is not None:
+                raise primitive_result_error(self.model, fc, prim, py, v, rty, why)
             return self.values.term(v, rty), "returned", {}
         o = next((o for o in outcomes if o.success), outcomes[0] if outcomes else Outcome("success", True))
         return self.outcome_term(o, rty), o.name, o.writes
@@ -323,16 +325,19 @@ def primitive_error(model: CompiledModel, fc: str, prim, args: list, exc: BaseEx
     else:
         notes.append("a primitive reports a failure by returning false or through its declared outcomes; "
                      "an exception is a bug of the functional layer")
-    return RoarError(f"primitive '{qual}' raised {type(exc).__name__}: {exc}", sites[0] if sites else None, notes)
+    said = f": {exc}" if str(exc) else " (with no message)"
+    return RoarError(f"primitive '{qual}' raised {type(exc).__name__}{said}", sites[0] if sites else None, notes)
 
 
-def primitive_result_error(model: CompiledModel, fc: str, prim, args: list, value, rty: str) -> RoarError:
+def primitive_result_error(model: CompiledModel, fc: str, prim, args: list, value, rty: str,
+                           why: Optional[str] = None) -> RoarError:
     """A primitive that returned a value of another type than its declaration's: a located error
     (a bug of the functional layer; read as it is, the value would stop the recipe that reads it)."""
     owner, name = model.functions.get(fc, (None, prim.name))
     qual = f"{owner}::{name}" if owner else name
     sites = model.call_sites.get(fc, [])
-    return RoarError(f"primitive '{qual}' returned {value!r}, but it is declared to return {rty}", sites[0] if sites
+    return RoarError(f"primitive '{qual}' returned {value!r}, but it is declared to return {rty}"
+                     + (f": {why}" if why else ""), sites[0] if sites
                      else None, [f"called as {name}({', '.join(map(repr, args))})"])
 
 
@@ -344,7 +349,10 @@ def _default(rty, model):
     if rty in ("string", "identifier"):
         return ""
     if rty in model.structs:
-        return tuple(0 for _ in model.structs[rty])
+        fields = model.field_types.get(rty, {})
+        return {f: _default(fields.get(f), model) for f in model.structs[rty]}
+    if rty in model.opaques:
+        return None   # no object: the functions it is passed to get None (an outcome's result is one)
     return 0
 
 

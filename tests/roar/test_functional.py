@@ -168,7 +168,8 @@ base = ability {
     with pytest.raises(RoarError) as info:
         api_load(spec).run("base::charging == true")
     err = info.value
-    assert err.message == "primitive 'base::plug' returned 7, but it is declared to return bool"
+    assert err.message == ("primitive 'base::plug' returned 7, but it is declared to return bool: "
+                           "expected true or false (a Python bool)")
     assert (err.pos.file, err.pos.line) == (str(spec), 6)
 
 
