@@ -20,9 +20,9 @@ from repo import ROOT
 DATA = Path(__file__).parent / "data"
 
 
-def _runs(path: Path, seeds: int = 5):
+def _runs(path: Path, seeds: int = 5, max_steps: int = 100_000):
     model = compile_spec(load_spec(path), "user::done == true")
-    return model, [run_model(model, seed=seed) for seed in range(seeds)]
+    return model, [run_model(model, seed=seed, max_steps=max_steps) for seed in range(seeds)]
 
 
 def _texts(r):
@@ -79,7 +79,8 @@ def test_an_ensure_whose_tasks_never_establish_it_is_a_cycle_mission_completion_
     the default mission-completion check reports the cycle, with the reason on the lasso."""
     from roar_formal import load_spec as api_load
     spec = api_load(DATA / "ensure_never_met.roar")
-    model, runs = _runs(DATA / "ensure_never_met.roar", 3)
+    # (runs that never end: 2,000 steps re-handle R1 over a hundred times, the default bound took 40 s)
+    model, runs = _runs(DATA / "ensure_never_met.roar", 3, max_steps=2_000)
     assert model.candidates and any(ts == [("door", "latch")] for ts in model.candidates.values())
     for r in runs:   # (the independent check: plain runs never end, and keep re-handling R1)
         assert r.outcome != "success"
