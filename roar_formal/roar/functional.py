@@ -265,6 +265,7 @@ class Registry:
         functions: dict[str, Primitive] = {}
         variables: dict[str, Primitive] = {}
         checked: set[str] = set()
+        types = type_table(spec)   # (what outcomes' results and writes are checked against)
         for ag in spec.agents:
             for where, node in _executable(ag):
                 for call in a.calls(node):
@@ -290,12 +291,12 @@ class Registry:
                     functions[key] = prim
                     if key not in checked:
                         checked.add(key)
-                        errors += _check_primitive(spec, prim, owner, decl)
+                        errors += _check_primitive(spec, prim, owner, decl, types)
             for var, _task in ag.task_initialised().items():
                 prim = self._prims.get(f"{ag.name}::{var}")
                 if prim is not None:
                     variables[f"{ag.name}::{var}"] = prim
-                    errors += _check_writes(spec, prim, ag.name, ag.var(var).pos)
+                    errors += _check_writes(spec, prim, ag.name, ag.var(var).pos, types)
         errors += self.assumption_errors(spec)
         if errors:
             seen, unique = set(), []
@@ -390,7 +391,7 @@ def _executable(ag: a.Agent):
 
 
 def _check_primitive(spec: a.Spec, prim: Primitive, owner: Optional[str],
-                     decl: Optional[a.Function]) -> list[RoarError]:
+                     decl: Optional[a.Function], types: dict) -> list[RoarError]:
     errors: list[RoarError] = []
     if decl is not None and prim.fn is not None:
         span = _arity(prim.fn)
@@ -402,20 +403,19 @@ def _check_primitive(spec: a.Spec, prim: Primitive, owner: Optional[str],
                 f"the callable bound to '{prim.name}' takes {takes} argument{'s' if high != 1 else ''}, "
                 f"but agent '{owner}' declares '{decl.name}' with {k}", decl.pos))
     if decl is not None:
-        table = type_table(spec)
         ty = resolve_type(spec, owner, decl.result)
         for o in prim.outcomes:
-            why = misfit(o.result, ty, table) if o.result is not None else None
+            why = misfit(o.result, ty, types) if o.result is not None else None
             if why is not None:
                 errors.append(RoarError(
                     f"outcome '{o.name}' of primitive '{prim.name}' returns {o.result!r}, but "
                     f"'{decl.name}' is declared to return {decl.result}: {why}", decl.pos))
     if owner is not None:
-        errors += _check_writes(spec, prim, owner, decl.pos if decl else None)
+        errors += _check_writes(spec, prim, owner, decl.pos if decl else None, types)
     return errors
 
 
-def _check_writes(spec: a.Spec, prim: Primitive, owner: str, pos: Optional[Pos]) -> list[RoarError]:
+def _check_writes(spec: a.Spec, prim: Primitive, owner: str, pos: Optional[Pos], types: dict) -> list[RoarError]:
     errors = []
     for o in prim.outcomes:
         for var, value in o.writes.items():
@@ -428,7 +428,7 @@ def _check_writes(spec: a.Spec, prim: Primitive, owner: str, pos: Optional[Pos])
                     f"variable of agent '{agent}'", pos))
                 continue
             tref = ag.var(name).type
-            why = misfit(value, resolve_type(spec, agent, tref), type_table(spec))
+            why = misfit(value, resolve_type(spec, agent, tref), types)
             if why is not None:
                 errors.append(RoarError(
                     f"outcome '{o.name}' of primitive '{prim.name}' writes {value!r} to '{var}', which is "
@@ -523,10 +523,6 @@ def value_fits(value, ty: Optional[str]) -> bool:
     if ty == "string":
         return isinstance(value, str)
     return True
-
-
-def _wanted(ty: str) -> str:
-    return f": expected {_PY_TYPES[ty]}" if ty in _PY_TYPES else ""
 
 
 def _arity(fn: Callable) -> Optional[tuple[int, Optional[int]]]:

@@ -305,9 +305,13 @@ class _Build(Transformer):
         return a.ExprStmt(c[0], pos=c[0].pos)
 
     def constraint(self, c):
+        """A constraint (a request, or what make and ensure send). A bare boolean variable ``x`` is
+        read as ``x == true`` and ``!x`` as ``x == false``: the form tasks' post-conditions take,
+        so that the logic layer finds the tasks that achieve it (it proves comparisons)."""
+        expr = _as_comparison(c[0])
         if len(c) == 1:
-            return a.Constraint(c[0], pos=c[0].pos)
-        expr, where_kw, clause = c
+            return a.Constraint(expr, pos=expr.pos)
+        _expr, where_kw, clause = c
         pairs = []
         for conj in a.conjuncts(clause):
             if not (isinstance(conj, a.Binary) and conj.op == "=="):
@@ -370,6 +374,16 @@ class _Build(Transformer):
         return dataclasses.replace(expr, parens=True, pos=_tpos(lp))
 
 
+def _as_comparison(e: a.Expr) -> a.Expr:
+    """``x`` as ``x == true``, ``!x`` as ``x == false`` (a variable alone); any other expression as it is."""
+    value = True
+    if isinstance(e, a.Unary) and e.op == "!" and isinstance(e.operand, (a.Name, a.Remote)):
+        e, value = e.operand, False
+    if isinstance(e, (a.Name, a.Remote)):
+        return a.Binary("==", e, a.BoolLit(value, pos=e.pos), pos=e.pos, op_pos=e.pos)
+    return e
+
+
 _STARTS = ["spec_file", "task_file", "recipe_file", "lone_expr", "lone_constraint"]
 
 
@@ -413,16 +427,8 @@ def parse_expr(text: str, file: str = "<input>") -> a.Expr:
 
 
 def parse_constraint(text: str, file: str = "<input>") -> a.Constraint:
-    """Parse a constraint (a request): ``expr [where a == b && ...]``. A bare boolean variable
-    ``x`` is read as ``x == true`` and ``!x`` as ``x == false``: the form tasks' post-conditions
-    take, so that the logic layer finds the tasks that achieve it (it proves comparisons)."""
-    c = _run(text, file, "lone_constraint")
-    e, value = c.expr, True
-    if isinstance(e, a.Unary) and e.op == "!" and isinstance(e.operand, (a.Name, a.Remote)):
-        e, value = e.operand, False
-    if isinstance(e, (a.Name, a.Remote)):
-        c = dataclasses.replace(c, expr=a.Binary("==", e, a.BoolLit(value, pos=e.pos), pos=e.pos, op_pos=e.pos))
-    return c
+    """Parse a constraint (a request): ``expr [where a == b && ...]`` (see ``_Build.constraint``)."""
+    return _run(text, file, "lone_constraint")
 
 
 def parse_task(text: str, file: str = "<input>", name: str = "") -> a.Task:

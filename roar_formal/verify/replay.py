@@ -407,10 +407,10 @@ class _Replayed:
         value = _python_value(returned[0], rty, self.compiled)
         if value is _NO_VALUE:
             return None   # an opaque handle (the outcomes' own handles stand for it), or no value
-        from ..roar.functional import value_fits
+        from ..roar.functional import misfit, type_table
         from ..robot.activity import CallResult
         from ..robot.sim import classify
-        if not value_fits(value, rty):
+        if misfit(value, rty, type_table(self.compiled.spec)) is not None:
             return None   # a value of another type than the function's: no outcome stands for it
         names = classify(prim.outcomes, CallResult(value), rty)
         for succ, kept, budget in outcomes:

@@ -103,3 +103,29 @@ def test_a_misspelt_statement_written_like_a_call_suggests_it(tmp_path):
     (tmp_path / "base.roar").write_text(text, encoding="utf-8")
     with pytest.raises(RoarError, match="unknown function 'asert'.*did you mean 'assert'"):
         load_spec(tmp_path / "base.roar")
+
+
+def test_a_bare_boolean_constraint_in_a_make_is_a_comparison_too(tmp_path):
+    """The same reading for what a recipe sends (one rule for every constraint): the task whose
+    post-condition is ``arrived == true`` serves ``make(base::arrived)``."""
+    text = (DATA / "base.roar").read_text(encoding="utf-8") + """
+mission = ability {
+  context = { { } { bool done = false; } { } }
+  export = { { } { } { } }
+  tasks = { go = task { post = { {done == true} }
+    recipes = { r = recipe { body = { make(base::arrived where base::station == 3); set done true; } } } } }
+}
+"""
+    (tmp_path / "two.roar").write_text(text, encoding="utf-8")
+    (tmp_path / "two.py").write_text((DATA / "base.py").read_text(encoding="utf-8"), encoding="utf-8")
+    spec = load_spec(tmp_path / "two.roar")
+    made = [n for n in _walk(spec) if isinstance(n, a.Constraint) and "arrived" in str(n.expr)]
+    assert made and all(isinstance(c.expr, a.Binary) and c.expr.right == a.BoolLit(True) for c in made)
+    from roar_formal import load_spec as api_load
+    assert api_load(tmp_path / "two.roar").run("mission::done").ok
+
+
+def _walk(n):
+    yield n
+    for c in n.children():
+        yield from _walk(c)
