@@ -511,11 +511,23 @@ def test_expression_round_trip(e):
     assert parse_expr(text) == e, text
 
 
+def _as_read(e: a.Expr) -> a.Expr:
+    """A constraint's predicate as the language reads it (docs/spec-language.md): a boolean
+    variable alone is ``x == true``, ``!x`` is ``x == false``; anything else as written."""
+    if isinstance(e, a.Unary) and e.op == "!" and isinstance(e.operand, (a.Name, a.Remote)):
+        return a.Binary("==", e.operand, a.BoolLit(False))
+    if isinstance(e, (a.Name, a.Remote)):
+        return a.Binary("==", e, a.BoolLit(True))
+    return e
+
+
+PREDICATES = EXPRS.map(_as_read)
+
 STMTS = st.one_of(
     st.builds(a.Let, NAMES, EXPRS),
     st.builds(a.Set, NAMES.map(a.Name) | st.builds(a.Remote, AGENTS, NAMES), EXPRS),
-    st.builds(a.Make, st.builds(a.Constraint, EXPRS)),
-    st.builds(a.Ensure, st.builds(a.Constraint, EXPRS, st.lists(st.builds(a.WherePair, EXPRS, EXPRS),
+    st.builds(a.Make, st.builds(a.Constraint, PREDICATES)),
+    st.builds(a.Ensure, st.builds(a.Constraint, PREDICATES, st.lists(st.builds(a.WherePair, EXPRS, EXPRS),
                                                                   max_size=2).map(tuple)),
               st.none() | EXPRS, st.none() | NAMES),
     st.builds(a.Wait, EXPRS, st.none() | EXPRS),
