@@ -168,6 +168,9 @@ class Binary(Expr):
     right: Expr
     #: position of the operator itself (``pos`` is the start of the left operand)
     op_pos: Pos = _pos()
+    #: written as the variable alone (a constraint ``x`` reads ``x == true``, ``!x`` reads
+    #: ``x == false``): printed, and said in messages, as written
+    implied: bool = field(default=False, compare=False)
 
 
 @dataclass(frozen=True)

@@ -696,7 +696,11 @@ class _Checker:
             self.err("type", e.op_pos, f"'{op}' needs two ints or two doubles, not {_show(lt)} and {_show(rt)}")
             return None if op in a.ARITH_OPS else "bool"
         # == and !=
-        if not _compat(lt, rt):
+        if not _compat(lt, rt) and getattr(e, "implied", False) and rt == "bool":
+            self.err(self._mix(lt, rt), e.op_pos,
+                     f"'{_fmt(e.left)}' is {_show(lt)}, not bool: a variable alone in a constraint means "
+                     f"'{_fmt(e.left)} == true' ('!x' means 'x == false'); compare it with a value of its type")
+        elif not _compat(lt, rt):
             self.err(self._mix(lt, rt), e.op_pos,
                      f"cannot compare {_show(lt)} with {_show(rt)} in '{_fmt(e)}'"
                      + self._mix_hint(lt, rt))

@@ -380,7 +380,7 @@ def _as_comparison(e: a.Expr) -> a.Expr:
     if isinstance(e, a.Unary) and e.op == "!" and isinstance(e.operand, (a.Name, a.Remote)):
         e, value = e.operand, False
     if isinstance(e, (a.Name, a.Remote)):
-        return a.Binary("==", e, a.BoolLit(value, pos=e.pos), pos=e.pos, op_pos=e.pos)
+        return a.Binary("==", e, a.BoolLit(value, pos=e.pos), pos=e.pos, op_pos=e.pos, implied=True)
     return e
 
 

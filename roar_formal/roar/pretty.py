@@ -93,6 +93,8 @@ def _fmt(e: a.Expr) -> str:
             inner = f"({inner})"
         return f"{e.op}{inner}"
     if isinstance(e, a.Binary):
+        if e.implied and isinstance(e.right, a.BoolLit):   # as written: the variable alone
+            return _fmt(e.left) if e.right.value else "!" + _wrap(e.left, _UNARY)
         p = PREC[e.op]
         if p == _CMP:  # comparisons do not chain: both sides strictly tighter
             return f"{_wrap(e.left, p + 1)} {e.op} {_wrap(e.right, p + 1)}"

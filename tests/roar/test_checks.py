@@ -171,6 +171,11 @@ CASES = [
                                            "c = ability { context = { { } { int y = 0; } { } } }"),
      "constraint-agents", "names b, c"),
     (agent(body="make(1);"), "not-bool", "a constraint must be a bool condition"),
+    # a variable alone reads 'x == true': said as written, for a variable that is not a bool
+    (agent(body="make(b::g);", extra="b = ability { context = { { int g; } { } { } } }"),
+     "type", "'b::g' is int, not bool: a variable alone in a constraint means 'b::g == true'"),
+    (agent(body="make(!b::g);", extra="b = ability { context = { { int g; } { } { } } }"),
+     "type", "'b::g' is int, not bool"),
     # statements
     (agent(body="set b::g 1;", extra="b = ability { context = { { int g; } { } { } } }"), "set-remote",
      "set changes only this agent's own variables"),

@@ -14,7 +14,7 @@ from roar_formal.errors import RoarError, SyntaxError_
 from roar_formal.roar import ast as a
 from roar_formal.roar.parser import hyper_compat_warnings, parse_constraint, parse_expr, parse_recipes, parse_roar, parse_task
 from roar_formal.roar.spec import load_spec
-from roar_formal.roar.pretty import format_expr, format_spec, format_stmt, hyper_files
+from roar_formal.roar.pretty import format_constraint, format_expr, format_spec, format_stmt, hyper_files
 
 from repo import ROOT
 MODELS = ROOT / "models"
@@ -522,6 +522,16 @@ def _as_read(e: a.Expr) -> a.Expr:
 
 
 PREDICATES = EXPRS.map(_as_read)
+
+
+@pytest.mark.parametrize("text, read", [("a", "a == true"), ("!a", "a == false"), ("b::x", "b::x == true"),
+                                        ("!b::x", "b::x == false")])
+def test_a_variable_alone_is_read_as_a_comparison_and_printed_as_written(text, read):
+    c = parse_constraint(text)
+    assert c.expr == parse_constraint(read).expr   # the same constraint as the comparison
+    assert c.expr.implied and not parse_constraint(read).expr.implied
+    assert format_constraint(c) == text            # messages and printed specs say what was written
+    assert format_constraint(parse_constraint(read)) == read
 
 STMTS = st.one_of(
     st.builds(a.Let, NAMES, EXPRS),
