@@ -35,6 +35,24 @@ class Hyp:
     name: str = "_"  # the proof variable standing for this hypothesis (for proof terms)
 
 
+class _NotTabled(Exception):
+    """A goal holds a term :func:`_variant` does not key (a lambda, a type)."""
+
+
+def _variant(t: Node, seen: dict):
+    """A key of a first-order term equal for two terms exactly when one is the other with its
+    logic variables renamed: each logic variable by its order of first occurrence."""
+    if not t.evars:
+        return t
+    if type(t) is Root:
+        h = t.head
+        args = tuple([_variant(a, seen) for a in t.args])
+        if type(h) is EVar:
+            return ("?", seen.setdefault(h, len(seen)), args)
+        return (h, args)
+    raise _NotTabled
+
+
 class SearchLimit(Exception):
     """Raised when the proof search exceeds its depth bound."""
 
@@ -57,6 +75,11 @@ class Backward:
         self.on_monad: Optional[Callable[[Run], None]] = None
         self.proofs = False  # build monadic proof terms (names for every fact in the monad)
         self._names = 0
+        # families whose goals are tabled (see _tabled_atom): set by a caller that asks only
+        # whether a goal has a proof, never for the proof
+        self.tabled: frozenset = frozenset()
+        self._table: dict = {}
+        self._tabling: set = set()
 
     def prove_consuming(self, ctx: Context, goal: Node, mode: str, consumed=()) -> Iterator[list]:
         """A forward rule's backward premise proved on ``ctx`` (:func:`prove_consuming`): the forward
@@ -71,6 +94,11 @@ class Backward:
     def _use(self, h: Hyp) -> None:
         h.used = True
         self.htrail.append(h)
+
+    def undo(self, mark: tuple, hmark: int) -> None:
+        """Back to ``(self.u.mark(), len(self.htrail))`` as taken before a search (a caller
+        that stops a search early undoes what it bound)."""
+        self._undo(mark, hmark)
 
     def _undo(self, mark: tuple, hmark: int) -> None:
         self.u.undo(mark)
@@ -172,6 +200,73 @@ class Backward:
         if bi is not None:
             yield from self._builtin(bi, goal)
             return
+        if self.tabled and type(fam) is Const and fam.name in self.tabled:
+            got = self._tabled_answers(goal, floor, aff_ok)
+            if got is not None:
+                for answer in got:
+                    mark = self.u.mark()
+                    if self.u.unify(goal, answer):
+                        yield ("app", "tabled", [])
+                    self.u.undo(mark)
+                return
+        yield from self._atom_search(goal, floor, aff_ok)
+
+    def _tabled_answers(self, goal: Root, floor: int, aff_ok: bool) -> Optional[list]:
+        """Every distinct instance of ``goal`` that has a proof, each once, computed on the first
+        call for a goal of its shape (up to renaming of its logic variables) under the same
+        hypotheses; None when the goal cannot be tabled (a linear or affine hypothesis is in
+        scope, an answer keeps a logic variable, or the same goal is being tabled further up).
+
+        Why: a clause such as transitivity, ``hyp (s N) (eq A C) <- hyp N (eq A B) <- hyp N (eq B
+        C)``, proves the same subgoals again for every proof of the one before, so an exhaustive
+        search (a goal with no proof) costs exponentially more at each level of its bound (the
+        ROAR compiler's entailment queries took 6 s for one constraint with a where clause).
+        Tabled, each subgoal is solved once and its answers reused. The answers are those of
+        the search; their proofs are not kept, so only a caller that asks whether a proof exists
+        sets ``tabled``."""
+        scope = []
+        for h in self.hyps:
+            if h.used:
+                continue
+            if h.mode != PERS:
+                return None
+            ty = zonk(h.ty) if h.ty.evars else h.ty   # (bound logic variables read through)
+            if ty.evars:
+                return None
+            scope.append(ty)
+        g = zonk(goal)
+        try:
+            key = (_variant(g, {}), tuple(scope))
+        except _NotTabled:
+            return None
+        got = self._table.get(key)
+        if got is not None:
+            return got
+        if key in self._tabling:
+            return None
+        self._tabling.add(key)
+        answers: list = []
+        seen: set = set()
+        mark, hmark = self.u.mark(), len(self.htrail)
+        search = self._atom_search(goal, floor, aff_ok)
+        try:
+            for _pf in search:
+                a = zonk(goal)
+                if a.evars:
+                    return None
+                if a not in seen:
+                    seen.add(a)
+                    answers.append(a)
+        finally:
+            search.close()
+            self._undo(mark, hmark)
+            self._tabling.discard(key)
+        self._table[key] = answers
+        return answers
+
+    def _atom_search(self, goal: Root, floor: int, aff_ok: bool) -> Iterator[None]:
+        """An atom's proofs by the hypotheses in scope, then the program's clauses."""
+        fam = goal.head
         hyps = self.hyps
         for i in range(len(hyps) - 1, -1, -1):
             h = hyps[i]

@@ -61,6 +61,9 @@ TIMER_DUE = ("clock Dk", "tmrs Lk", "!tm_rm Dk Lk Lk1")
 HS_LOGIC = "hs R (h_lq I) {} F Pl W"
 #: depth budget of the logic layer's proof search (8.2: limit)
 PROOF_BUDGET = 4
+#: the logic layer's families whose goals the compile-time entailment tables (clf/backward.py,
+#: _tabled_answers): the same candidates, found without re-proving each subgoal per proof
+TABLED = frozenset({"hyp"})
 
 
 def nat(k: int) -> S.Expr:
@@ -2321,7 +2324,20 @@ class _Compiler:
             queries = [query(q("prove {} {} {}", budget, tc, form)) for tc, form in pairs]
             prog = Program(extend_signature(sig, queries, "<compiled model>"))
             goals = [d for d in prog.sig.directives if hasattr(d, "goal")]
-            return [next(iter(Backward(prog).solve(q.goal)), None) is not None for q in goals]
+            # one search for all the queries, 'hyp' goals tabled: only whether a proof exists is
+            # asked, and a failing query's transitive chains cost exponentially more untabled
+            bw = Backward(prog)
+            bw.tabled = TABLED
+            out = []
+            for d in goals:
+                mark, hmark = bw.u.mark(), len(bw.htrail)
+                proofs = bw.solve(d.goal)
+                try:
+                    out.append(next(proofs, None) is not None)
+                finally:
+                    proofs.close()
+                    bw.undo(mark, hmark)
+            return out
 
         found: dict[str, list[str]] = {}
         pending = sorted(self.predicates.items(), key=lambda pa: (key_text(pa[0]), pa[1]))

@@ -127,7 +127,9 @@ def test_library_checks_bounds_when_the_query_runs(bounds, ok):
 
 def test_a_pipeline_cut_short_stops_quietly(tmp_path):
     f = tmp_path / "many.clf"
-    f.write_text("a : type.\n" + "".join(f"r{i} : a.\n" for i in range(3000)) + "#query * * * 1 a.\n")
+    # (about 300 KB of solutions, more than a pipe holds: the writer is still writing when the
+    # reader leaves, however fast it ran; with 47 KB it could finish first and exit 0)
+    f.write_text("a : type.\n" + "".join(f"r{i} : a.\n" for i in range(20000)) + "#query * * * 1 a.\n")
     code = ("import sys\nfrom roar_formal.cli import main\nmain(['clf', sys.argv[1]])\n")
     p = subprocess.Popen([sys.executable, "-c", code, str(f)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     first = p.stdout.readline()
