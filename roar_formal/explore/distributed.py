@@ -44,7 +44,7 @@ import numpy as np
 from ..clf.query import with_big_stack
 from .graph import Interner, StateGraph
 from .portable import ContextCodec, NotPortable
-from .search import Budget, current_rss_mb
+from .search import Budget, current_rss_mb, describe_path
 
 __all__ = ["DistributedExplorer", "DistributedError", "SwarmResult", "codec_for", "swarm_member"]
 
@@ -386,6 +386,7 @@ class DistributedExplorer:
         self.steps = ShippedSteps(self)
         self.graph.describe_state = lambda i: system.describe(self.states[i])
         self.graph.describe_edge = lambda e: system.describe_step(self.steps[e])
+        self.graph.describe_steps = lambda edges: describe_path(self, edges)
         try:
             seed = self.codec.state(self.initial)
             owner = self.codec.partition(self.initial) % self.n
@@ -668,6 +669,7 @@ class SwarmResult:
         self.steps = ShippedSteps(self)
         g.describe_state = lambda i: system.describe(self.states[i])
         g.describe_edge = lambda e: system.describe_step(self.steps[e])
+        g.describe_steps = lambda edges: describe_path(self, edges)
 
     def omission_probability(self) -> float:
         return self.omission

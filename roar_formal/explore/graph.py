@@ -63,6 +63,9 @@ class StateGraph:
     stop_reason: str = ""
     describe_state: Optional[Callable[[int], list[str]]] = None  # state id -> printable lines
     describe_edge: Optional[Callable[[int], str]] = None  # edge index -> printable step
+    # a path's edges -> its steps printed as one run takes them (see search.path_steps); None:
+    # each edge's step as recorded (describe_edge)
+    describe_steps: Optional[Callable[[list], list]] = None
 
     @property
     def n_states(self) -> int:

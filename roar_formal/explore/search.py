@@ -221,6 +221,49 @@ class StepStore:
         return (self[i] for i in range(len(self.items)))
 
 
+def path_steps(explorer, edges: list) -> list:
+    """The steps of a path of the explored graph (edge indices, each edge leaving the state the
+    one before it enters, the first leaving a state the search kept as it found it) as one run
+    takes them: each step applies to the state the steps before it reached, fresh names
+    included.
+
+    Why: a transition is recorded with the names of its source state as the search kept it,
+    and a state reached again by another edge is kept with the names of its first discovery,
+    another renaming of the run's. Along edges by which their targets were discovered (a
+    path to a state) the recorded steps are the run's; from the first other edge on (a
+    lasso's cycle closes on a state found before), the path is followed by real successors:
+    from the run's state, the successor with the edge's rule whose key is its target's. A
+    counterexample's trace then replays step by step, and its ROAR events name the requests
+    the run made. Falls back to the recorded steps if no successor matches (it always should),
+    and for an explorer that exposes no graph (the robot-backed search's view of its states as
+    contexts: its states are the robot's, replayed on the robot)."""
+    g = getattr(explorer, "graph", None)
+    if g is None:
+        return [explorer.steps[e] for e in edges]
+    system = explorer.system
+    out: list = []
+    cur = None   # the run's state, once it is not the one the search kept
+    for i, e in enumerate(edges):
+        dst = int(g.dst[e])
+        if cur is None and int(g.parent_edge[dst]) == e:
+            out.append(explorer.steps[e])
+            continue
+        state = cur if cur is not None else explorer.states[int(g.src[e])]
+        want = system.key(explorer.states[dst])
+        label = g.labels.names[g.label[e]]
+        succ = next((x for x in system.successors(state) if x.label == label and system.key(x.state) == want), None)
+        if succ is None:
+            return out + [explorer.steps[x] for x in edges[i:]]
+        out.append(succ.step)
+        cur = succ.state
+    return out
+
+
+def describe_path(explorer, edges: list) -> list:
+    """A path's steps printed (``system.describe_step``) as :func:`path_steps` gives them."""
+    return [explorer.system.describe_step(st) for st in path_steps(explorer, edges)]
+
+
 class Explorer:
     """Resumable BFS/DFS that records every state and transition in a :class:`StateGraph`."""
 
@@ -259,6 +302,7 @@ class Explorer:
         self.states.graph, self.states.steps = self.graph, self.steps   # (rebuilding dropped states)
         self.graph.describe_state = lambda i: system.describe(self.states[i])
         self.graph.describe_edge = lambda e: system.describe_step(self.steps[e])
+        self.graph.describe_steps = lambda edges: describe_path(self, edges)
         self.started = time.perf_counter()
         self.elapsed = 0.0
         # partial-order reduction (the system's ``options.reduction``): expansions that used a

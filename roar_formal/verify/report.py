@@ -16,6 +16,7 @@ from typing import Optional
 from ..lines import Lines
 from ..roar.report import decode_state
 from ..trace.render import KIND_STYLE
+from ..explore.search import path_steps
 from .results import counterexample_steps
 
 __all__ = ["counterexample_report", "counterexample_lines", "replay_step_lines", "replay_state_lines",
@@ -52,7 +53,7 @@ def counterexample_report(res, prop: str) -> dict:
     from ..roar.report import decode_state, step_changes
     model, start, explorer = roar
     edges = list(cx.prefix) + list(cx.cycle)
-    engine_steps = [explorer.steps[e] for e in edges]
+    engine_steps = path_steps(explorer, edges)
     events, nar = path_narration(model, start, engine_steps)
     for ev in events:
         steps[ev.step - 1]["events"].append(ev.as_json())

@@ -9,6 +9,7 @@ from typing import Optional
 from ..clf.program import Program
 from ..trace.format import write_trace
 from ..explore.graph import StateGraph
+from ..explore.search import path_steps
 from .claims import trace_claim
 from .jobs import Job
 from ..explore.properties import Verdict
@@ -62,7 +63,7 @@ def roar_events(result: JobResult, verdict: Verdict) -> Optional[list]:
     model, start, explorer = roar
     cx = verdict.counterexample
     edges = list(cx.prefix) + list(cx.cycle)
-    events = path_events(model, start, [explorer.steps[e] for e in edges])
+    events = path_events(model, start, path_steps(explorer, edges))
     per_step: list = [[] for _ in edges]
     for ev in events:
         per_step[ev.step - 1].append(ev)
@@ -74,9 +75,15 @@ def counterexample_steps(graph: StateGraph, verdict: Verdict, result: Optional[J
     cx = verdict.counterexample
     events = roar_events(result, verdict) if result is not None else None
     out = []
-    for loop, edges in ((False, cx.prefix), (True, cx.cycle)):
-        for e in edges:
-            rec = graph.describe_edge(e) if graph.describe_edge else {"rule": graph.labels.names[graph.label[e]]}
+    edges = list(cx.prefix) + list(cx.cycle)
+    # the steps as one run takes them (a lasso's cycle in the names its stem gave: search.path_steps)
+    described = graph.describe_steps(edges) if graph.describe_steps else None
+    for loop, part in ((False, cx.prefix), (True, cx.cycle)):
+        for e in part:
+            if described is not None:
+                rec = described[len(out)]
+            else:
+                rec = graph.describe_edge(e) if graph.describe_edge else {"rule": graph.labels.names[graph.label[e]]}
             rec = dict(rec)
             rec["group"] = graph.groups.names[int(graph.group[e])]
             evs = events[len(out)] if events is not None else []

@@ -226,6 +226,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
         d["pose"] = [round(v, 6) for v in node.pose]
         return d
     graph.describe_edge = describe_edge
+    graph.describe_steps = None   # (each step with the robot's time and pose where it ended)
     run = RobotRun(tree, system, explorer, scenario, abstraction, dict(setup.faults), tuple(setup.on), setup.seed)
     run.horizon_states = sum(1 for s in states if s.node.at_horizon)
     tag = "robot-backed, " + ("exact" if abstraction.exact else
