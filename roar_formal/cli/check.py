@@ -309,8 +309,13 @@ def _summary(console: Console, results) -> None:
             else:
                 want = r.expected(p)
                 mark = "" if want is None or want == v.status else f" (want {want})"
-                cells.append(Text.assemble((v.status, STATUS_STYLE[v.status]), mark))
+                # a "holds" of hash compaction or bitstate is a bug-hunting result, not a proof
+                mode = v.details.get("visited") if v.status == "holds" else None
+                cells.append(Text.assemble((v.status, STATUS_STYLE[v.status]),
+                                           (f" ({mode}, not verified)", "yellow") if mode else "", mark))
+        unproved = any(v.status == "holds" and v.details.get("visited") for v in r.verdicts.values())
         t.add_row(r.name, *cells, f"{r.states:,}", f"{r.seconds:.2f} s",
-                  Text("as expected", style="green") if r.ok and not r.incomplete else
+                  Text("as expected" + (", not verified" if unproved else ""),
+                       style="yellow" if unproved else "green") if r.ok and not r.incomplete else
                   Text("incomplete", style="yellow") if r.ok else Text("unexpected", style="red"))
     console.print(t)

@@ -30,8 +30,11 @@ BIT_HASHES = 3
 
 def _bit_positions(key, bits: int) -> tuple:
     """A state's BIT_HASHES positions in a bit array of ``bits`` bits: double hashing on a 128-bit
-    BLAKE2 digest of the key's hash (equal keys, equal hashes, within one process)."""
-    d = hashlib.blake2b(hash(key).to_bytes(8, "little", signed=True), digest_size=16).digest()
+    BLAKE2 digest of the key: of its bytes for a canonical key (so that a bitstate search
+    takes the same states for visited ones from run to run: Python's own hash of bytes
+    changes with each process), of its hash for any other key (equal within one process)."""
+    data = key if type(key) is bytes else hash(key).to_bytes(8, "little", signed=True)
+    d = hashlib.blake2b(data, digest_size=16).digest()
     h1, h2 = int.from_bytes(d[:8], "little"), int.from_bytes(d[8:], "little") | 1
     return tuple((h1 + i * h2) % bits for i in range(BIT_HASHES))
 

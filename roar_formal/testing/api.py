@@ -1119,7 +1119,10 @@ class Exploration:
                "model": str(r.job.model if not r.job.is_roar else r.job.spec), "ok": r.ok,
                "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states,
                "transitions": r.graph.n_edges + r.graph.n_unrecorded, "complete": bool(r.graph.complete),
-               "incomplete": list(self.incomplete), "seconds": round(r.seconds, 4),
+               "incomplete": list(self.incomplete),
+               # every "holds" a proof: an exact visited set, every reachable state explored
+               "exhaustive": bool(r.graph.complete) and r.job.visited == "exact" and r.job.search != "swarm",
+               "visited": r.job.visited, "seconds": round(r.seconds, 4),
                "memory_mb": round(r.memory_mb, 1), "mismatches": r.mismatches, "verdicts": {}}
         robot = self.robot
         if robot is not None:

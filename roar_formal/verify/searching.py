@@ -48,8 +48,12 @@ def bitstate_note(explorer, verdicts: dict) -> None:
     g = explorer.graph
     p, lost = explorer.omission_probability(), explorer.expected_omissions()
     what = (f"{g.n_states:,} states in {explorer.bits:,} bits, 3 bits each: at the end a new state was taken "
-            f"for a visited one with probability {p:.1e}; about {lost:,.1f} states were so taken, and their "
+            f"for a visited one with probability {p:.1e}; about {_about(lost)} states were so taken, and their "
             f"successors may be missed too")
+    if p > 1e-2:   # the array is too small: most of the state space may be unexplored
+        need = _bits_for(g.n_states)
+        what += (f"; the bit array is too small for this model: give [bitstate] bits at least {need:,} "
+                 f"(more, as the states it missed are found)")
     for v in verdicts.values():
         v.details.update(visited="bitstate", omission_probability=p, expected_omissions=lost, bits=explorer.bits,
                          unrecorded_transitions=g.n_unrecorded)
@@ -57,6 +61,20 @@ def bitstate_note(explorer, verdicts: dict) -> None:
             v.message += f" [bitstate: not verified; {what}]"
         elif v.status == "violated":
             v.message += " [bitstate: a real path; replay the trace to confirm it]"
+
+
+def _about(x: float) -> str:
+    """An expected count as said: below one, as a probability-sized number, not "0.0"."""
+    return f"{x:,.1f}" if x >= 0.1 else f"{x:.1e}"
+
+
+def _bits_for(n: int) -> int:
+    """The bits a bitstate array needs for ``n`` states to keep the end-of-search omission
+    probability (1 - e^(-3n/m))^3 below 1e-3 (m at least 3n / -ln(1 - 0.1)), rounded up to a
+    power of two."""
+    import math
+    m = int(3 * max(n, 1) / -math.log(0.9)) + 1
+    return 1 << (m - 1).bit_length()
 
 
 def stated_time(job: Job, graph) -> None:

@@ -96,6 +96,39 @@ deadlock = "holds"
     v = job["verdicts"]["deadlock"]
     assert code == 0 and v["status"] == "holds" and "not verified" in v["message"]
     assert v["visited"] == "bitstate" and v["omission_probability"] > 0.01 and v["bits"] == 1024
+    # the search ended, but its "holds" proves nothing: the job says so, and so does the table
+    assert job["complete"] is True and job["exhaustive"] is False and job["visited"] == "bitstate"
+    assert "the bit array is too small for this model: give [bitstate] bits at least" in v["message"]
+    code, out, _ = roar_cli("check", path, "--no-traces")
+    table = out[out.index("verification summary"):]
+    assert code == 0 and "(bitstate, not verified)" in table and "as expected, not verified" in table
+
+
+def test_an_exact_complete_search_is_exhaustive_in_json(tmp_path, roar_cli):
+    path = _job(tmp_path, 'name = "ex"\nmodel = "ROOT/models/philosophers/ok.clf"\n[expect]\ndeadlock = "holds"\n')
+    code, out, _ = roar_cli("check", path, "--json", "--no-traces")
+    doc = json.loads(out)
+    job = doc["jobs"][0] if "jobs" in doc else doc[0]
+    assert code == 0 and job["exhaustive"] is True and job["visited"] == "exact"
+
+
+def test_a_bitstate_search_takes_the_same_states_whatever_the_hash_seed(tmp_path):
+    """The bit positions come from the canonical key's bytes, not Python's per-process hash:
+    two processes with different hash seeds visit the same states with a tiny array."""
+    import os
+    import subprocess
+    import sys
+    path = _job(tmp_path, 'name = "bs"\nmodel = "ROOT/models/philosophers/dl.clf"\nvisited = "bitstate"\n'
+                          '[bitstate]\nbits = 2048\n[expect]\ndeadlock = "violated"\n')
+    code = ("import sys, json\nfrom roar_formal.verify.check import run_job\n"
+            "from roar_formal.verify.jobs import load_job\n"
+            "r = run_job(load_job(sys.argv[1]))\nprint(json.dumps([r.graph.n_states, r.graph.n_unrecorded]))\n")
+    got = set()
+    for seed in ("1", "2", "3"):
+        out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True,
+                             env={**os.environ, "PYTHONHASHSEED": seed})
+        got.add(out.stdout.strip().splitlines()[-1])
+    assert len(got) == 1, got
 
 
 @pytest.mark.parametrize("body,message", [
