@@ -430,6 +430,23 @@ class View:
     held: Optional[dict] = None
 
 
+def _view_key(v: View) -> tuple:
+    """What a View holds, hashable: two Views with one key read alike in every predicate."""
+    return (tuple(sorted((k, _frozen(x)) for k, x in v.values.items())), v.r0, v.r0_ec,
+            tuple(sorted((a, tuple(sorted(st))) for a, st in v.agent_states.items())),
+            tuple(sorted((t, tuple(sorted(st))) for t, st in v.tasks.items())), v.events,
+            None if v.held is None else tuple(sorted(v.held.items(), key=lambda kv: repr(kv[0]))))
+
+
+def _frozen(x):
+    """A Python value of a variable, hashable and told apart by type (True is not 1)."""
+    if isinstance(x, (list, tuple)):
+        return (type(x).__name__, tuple(_frozen(y) for y in x))
+    if isinstance(x, dict):
+        return ("dict", tuple(sorted((k, _frozen(y)) for k, y in x.items())))
+    return (type(x).__name__, x)
+
+
 def step_events(model, step) -> frozenset:
     """The events of an engine step the property language names: a primitive starting (a ``pending``
     fact produced) or ending (one consumed), a constraint sent (a new ``rq`` fact)."""
@@ -1030,10 +1047,15 @@ class SpecChecks:
     def views(self, g, ctx_of) -> list:
         """The decoded states (cached while the same explorer grows)."""
         if self._key is not ctx_of:
-            self._key, self._views = ctx_of, []
+            self._key, self._views, self._view_ids = ctx_of, [], {}
         held = bool(self.incompatible)
+        shared = self._view_ids
         while len(self._views) < g.n_states:
-            self._views.append(view_of(self.model, ctx_of(len(self._views)), held))
+            v = view_of(self.model, ctx_of(len(self._views)), held)
+            # most states read alike (the same values, request and task states): one View each
+            # (kept for every state visited, a View of its own was 2.4 KB a state, more than
+            # the search kept for the state itself)
+            self._views.append(shared.setdefault(_view_key(v), v))
         return self._views
 
     def values(self, fn, views) -> np.ndarray:

@@ -753,3 +753,19 @@ def test_a_strongly_fair_counterexample_says_so(tmp_path):
                                      'fairness = "strong" }\n')
     v = run_job(load_job(j)).verdicts["ends"]
     assert v.status == "violated" and "a strongly fair cycle of" in v.message
+
+
+def test_states_that_read_alike_share_one_view_and_others_do_not():
+    """The decoded states are kept once per distinct reading (roar/props.py ``views``): the key
+    tells apart what a predicate could tell apart, values by type (True is not 1, a list is not
+    a tuple), and is the same for Views built apart from equal parts."""
+    from roar_formal.roar.props import View, _view_key
+
+    def view(values, tasks=None):
+        return View(dict(values), "running", None, {"arm": {"running"}}, dict(tasks or {}))
+
+    assert _view_key(view({("a", "x"): 1})) == _view_key(view({("a", "x"): 1}))
+    assert _view_key(view({("a", "x"): 1})) != _view_key(view({("a", "x"): True}))
+    assert _view_key(view({("a", "x"): [1, 2]})) != _view_key(view({("a", "x"): (1, 2)}))
+    assert _view_key(view({}, {("arm", "t"): {"go"}})) != _view_key(view({}, {("arm", "t"): {"paused"}}))
+    assert _view_key(view({("a", "x"): 1, ("a", "y"): 2})) == _view_key(view({("a", "y"): 2, ("a", "x"): 1}))
