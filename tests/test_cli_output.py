@@ -121,4 +121,4 @@ def test_shell_completion_names_commands_and_options():
     assert r.stdout.split() == ["check"]
     env.update(COMP_WORDS="roar-verify check --max", COMP_CWORD="2")
     r = subprocess.run([sys.executable, "-m", "roar_formal"], capture_output=True, text=True, env=env, timeout=60)
-    assert set(r.stdout.split()) == {"--max-states", "--max-seconds"}
+    assert set(r.stdout.split()) == {"--max-states", "--max-seconds", "--max-memory"}

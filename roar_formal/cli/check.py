@@ -37,6 +37,8 @@ def register(app: typer.Typer) -> None:
         max_seconds: Optional[float] = typer.Option(
             None, "--max-seconds",
             help="Overrides every job's time bound (a spec or model named directly, with no job file: 600 s by default)."),
+        max_memory: Optional[int] = typer.Option(
+            None, "--max-memory", help="Overrides every job's memory bound, in MiB of resident memory."),
         symmetry: bool = typer.Option(False, "--symmetry", help="Symmetry reduction: one state per set of states "
                                       "that differ only by exchanging interchangeable agents (or constants), when "
                                       "the model has verified symmetries (docs/checking.md, Symmetry reduction)."),
@@ -73,6 +75,9 @@ def register(app: typer.Typer) -> None:
             raise RoarError(f"--max-states {max_states}: expected a positive number of states")
         if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
             raise RoarError(f"--max-seconds {max_seconds}: expected a positive, finite number of seconds")
+        from ..verify.jobs import MIN_MEMORY_MB
+        if max_memory is not None and max_memory < MIN_MEMORY_MB:
+            raise RoarError(f"--max-memory {max_memory}: expected a whole number of MiB, at least {MIN_MEMORY_MB}")
         from ..verify.pictures import check_output_folder
         outputs = [(png, "--png"), (svg, "--svg"), (dot, "--dot"), (html, "--html")]
         if not no_traces and traces != Path("roar-traces"):   # the default is checked when written
@@ -94,6 +99,8 @@ def register(app: typer.Typer) -> None:
                 job.budget.max_states = max_states
             if max_seconds is not None:
                 job.budget.max_seconds = max_seconds
+            if max_memory is not None:
+                job.budget.max_memory_mb = max_memory
         results = []
         import time as _time
         for job in jobs:
@@ -142,13 +149,16 @@ def register(app: typer.Typer) -> None:
             print(json.dumps([r.as_json() for r in results], indent=2))
         else:
             _summary(console, results)
-        if not all(r.ok for r in results):
+        ok = all(r.ok for r in results)
+        short = [(r, [p for p, v in r.result.verdicts.items() if v.status == "incomplete"]) for r in results]
+        short = [(r, ps) for r, ps in short if ps]   # every verdict a budget left open, expected or not
+        if short and not as_json:
+            names = ", ".join(f"{r.name} ({', '.join(ps)})" for r, ps in short)
+            console.print(styled(("incomplete: ", "yellow"), f"{names}: {_budget_hint(results)}"
+                                 + ("" if not ok else " (exit status 4)")), soft_wrap=True)
+        if not ok:
             raise typer.Exit(1)
         if any(r.incomplete for r in results):   # no violation, but no verdict either: its own exit code
-            if not as_json:
-                names = ", ".join(f"{r.name} ({', '.join(r.incomplete)})" for r in results if r.incomplete)
-                console.print(styled(("incomplete: ", "yellow"), f"{names}: a budget ran out before a verdict; "
-                                     "raise the bounds (--max-states, --max-seconds, or a job's [bounds]) (exit status 4)"), soft_wrap=True)
             raise typer.Exit(4)
 
     @app.command("replay")
@@ -288,6 +298,19 @@ def _interactive_replay(console: Console, rep, verbose: bool) -> None:
             console.print(_REPLAY_HELP)
         else:
             console.print(f"unknown command {cmd!r}; {_REPLAY_HELP}", style="yellow")
+
+
+def _budget_hint(results) -> str:
+    """What to do about searches that ran out of budget: the bounds that ran out, by their
+    options, and the modes for a model too large to exhaust."""
+    reasons = {r.result.graph.stop_reason for r in results
+               if any(v.status == "incomplete" for v in r.result.verdicts.values())}
+    opts = [opt for word, opt in (("state budget", "--max-states"), ("time budget", "--max-seconds"),
+                                  ("memory budget", "--max-memory")) if any(word in x for x in reasons)]
+    opts = opts or ["--max-states", "--max-seconds", "--max-memory"]
+    return (f"a budget ran out before a verdict; raise it ({', '.join(opts)}, or a job's [bounds]); "
+            "for a model too large to exhaust, a job file's visited = \"hash\" or \"bitstate\" (less memory "
+            "a state), or search = \"swarm\" (bug hunting) (docs/checking.md, Memory)")
 
 
 def _summary(console: Console, results) -> None:

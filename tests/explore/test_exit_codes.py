@@ -12,12 +12,12 @@ from roar_formal.cli import main
 from repo import ROOT
 
 
-def check(capsys, tmp_path, text: str) -> tuple[int, str, str]:
+def check(capsys, tmp_path, text: str, *more: str) -> tuple[int, str, str]:
     job = tmp_path / "job.toml"
     job.write_text(text)
     code = 0
     try:
-        main(["check", str(job), "--no-traces"])
+        main(["check", str(job), "--no-traces", *more])
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else 1
     out, err = capsys.readouterr()
@@ -47,6 +47,23 @@ def test_no_violation_but_no_verdict_has_its_own_exit_code(capsys, tmp_path, mon
     code, out, err = check(capsys, tmp_path, job("ok.clf", "[bounds]\nmax_states = 5\n"))
     assert code == 4
     assert "incomplete" in out and "a budget ran out before a verdict" in out
+    # the hint names the bound that ran out, and the modes for a model too large to exhaust
+    assert "raise it (--max-states, or a job's [bounds])" in out and 'visited = "hash"' in out
+
+
+def test_a_budget_hint_is_given_when_an_expected_verdict_is_left_open(capsys, tmp_path, monkeypatch):
+    """A property expected to hold whose search ran out makes the job fail (exit 1): the hint
+    says which budget, as for exit 4."""
+    monkeypatch.setenv("COLUMNS", "200")
+    code, out, err = check(capsys, tmp_path, job("ok.clf", '[bounds]\nmax_states = 5\n[expect]\ndeadlock = "holds"\n'))
+    assert code == 1
+    assert "incomplete: " in out and "raise it (--max-states" in out and "exit status 4" not in out
+
+
+def test_max_memory_overrides_the_jobs_bound(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    code, out, err = check(capsys, tmp_path, job("ok.clf", ""), "--max-memory", "5")
+    assert code == 2 and "--max-memory 5: expected a whole number of MiB, at least 16" in err
 
 
 def test_version_and_module_entry_point(capsys):
