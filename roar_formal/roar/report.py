@@ -39,6 +39,49 @@ def step_changes(model: CompiledModel, step) -> list[dict]:
     return out
 
 
+def growing_variables(model: CompiledModel, graph, steps) -> list[str]:
+    """The number variables that kept growing (or shrinking) as a search that ran out of budget
+    went deeper, said with where their values first appeared: each of their last four values
+    (the largest, or the smallest) first reached at a greater depth than the one before, the
+    last within the deepest tenth of the search. Why: a counter that grows without bound (``set
+    tries tries + 1`` with nothing bounding it) is the usual reason a state space never ends,
+    and nothing else in an incomplete verdict points at it. ``steps`` are the transitions'
+    steps by edge (engine steps, or the explorer's packed ones)."""
+    from ..explore.system import PackedStep
+    depth, src = graph.depth, graph.src
+    first: dict = {}   # cell -> {value: the depth it was first produced at}
+    for e in range(graph.n_edges):
+        st = steps[e]
+        produced = st[4 + st[3]:] if type(st) is PackedStep else st.produced
+        d = None
+        for _m, f in produced:
+            if _h(f) != V.CONTAINS:
+                continue
+            c = V.contains(f)
+            if _h(c.value) != "vnum":
+                continue
+            if d is None:
+                d = depth[src[e]] + 1
+            seen = first.setdefault(_h(c.cell), {})
+            if c.value not in seen or seen[c.value] > d:
+                seen[c.value] = d
+    deepest = max(depth) if len(depth) else 0
+    out = []
+    for cell, seen in first.items():
+        if cell not in model.cells or len(seen) < 4:
+            continue
+        vals = sorted((value_of(v), d) for v, d in seen.items())
+        for run in (vals[-4:], vals[:4][::-1]):   # the largest values, growing; the smallest, shrinking
+            ds = [d for _v, d in run]
+            if all(a < b for a, b in zip(ds, ds[1:])) and ds[-1] >= deepest - max(2, deepest // 10):
+                agent, var = model.cells[cell]
+                out.append(f"{agent}::{var} kept {'growing' if run is not vals[:4][::-1] else 'shrinking'} "
+                           f"as the search went deeper ("
+                           + ", ".join(f"{format_value(v)} at depth {d}" for v, d in run) + f", of {deepest})")
+                break
+    return sorted(out)
+
+
 def decode_state(model: CompiledModel, ctx, labels: dict, req_info: dict) -> dict:
     """A state as agents see it: per agent its variables, live requests and activities, and
     the wait-for edges between agents (a recipe blocked on a make/ensure waits for the agent

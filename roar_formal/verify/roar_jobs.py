@@ -25,6 +25,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     from ..roar.functional import functional_module, load_registry
     from ..roar.compile import compile_spec
     from ..roar.explore import RoarSystem, roar_final
+    from ..roar.report import growing_variables
     from ..roar.spec import load_spec
     from ..roar.sources import spec_fingerprint
     t0 = time.perf_counter()
@@ -93,6 +94,16 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
     explorer, graph, verdicts = run_search(job, t0, explore, options)
     mark_reduction(job, verdicts, reduction)
     mark_symmetry(sym, verdicts, graph)
+    open_ = [v for v in verdicts.values() if v.status == "incomplete"]
+    if open_ and not graph.complete:
+        store = explorer.steps
+        grown = growing_variables(model, graph, store.items if getattr(store, "pack", None) else store)
+        if grown:
+            why = (f"; {'; '.join(grown)}: if nothing bounds it, the state space is infinite and no budget "
+                   "is enough (a recipe's pre-condition such as 'tries < 3' bounds a counter)")
+            open_[0].message += why   # (said once; every open verdict carries it in its details)
+            for v in open_:
+                v.details["growing"] = grown
     mismatches = [f"{p}: expected {want}, got {verdicts[p].status}" for p, want in job.expect.items()
                   if verdicts[p].status != want]
     backend = "general" + VISITED_NOTE[job.visited]
