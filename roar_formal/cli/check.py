@@ -303,8 +303,11 @@ def _interactive_replay(console: Console, rep, verbose: bool) -> None:
 def _budget_hint(results) -> str:
     """What to do about searches that ran out of budget: the bounds that ran out, by their
     options, and the modes for a model too large to exhaust."""
-    reasons = {r.result.graph.stop_reason for r in results
-               if any(v.status == "incomplete" for v in r.result.verdicts.values())}
+    short = [r.result for r in results if any(v.status == "incomplete" for v in r.result.verdicts.values())]
+    if short and all(x.job.search == "swarm" for x in short):   # its members stopped at their own bound
+        return ("no randomized search found a violation of these, nor covered the state space; more or longer ones may "
+                "([swarm] runs and max_states in the job file)")
+    reasons = {x.graph.stop_reason for x in short}
     opts = [opt for word, opt in (("state budget", "--max-states"), ("time budget", "--max-seconds"),
                                   ("memory budget", "--max-memory")) if any(word in x for x in reasons)]
     opts = opts or ["--max-states", "--max-seconds", "--max-memory"]

@@ -237,3 +237,19 @@ def test_bad_search_settings_are_located(tmp_path, extra, message, line):
     assert message in e.value.message and e.value.pos.file == str(job)
     if line is not None:
         assert e.value.pos.line == line, e.value.pos
+
+
+def test_an_open_swarm_verdict_hints_at_more_or_longer_searches(tmp_path, capsys, monkeypatch):
+    """The last line of check names what a swarm can be given (its members stop at their own
+    bound, not the job's), not the job's bounds."""
+    from roar_formal.cli import main
+    monkeypatch.setenv("COLUMNS", "250")
+    job = _job(tmp_path, "conflict.toml", 'search = "swarm"\nvisited = "hash"\n[swarm]\nruns = 2\nmax_states = 60\n')
+    try:
+        with_big_stack(lambda: main(["check", str(job), "--no-traces"]))
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr().out
+    assert code in (1, 4)
+    assert "more or longer ones may ([swarm] runs and max_states in the job file)" in out
+    assert "--max-states" not in out.split("incomplete: ")[-1]
