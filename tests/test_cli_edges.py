@@ -90,3 +90,21 @@ def test_a_mismatch_with_top_says_what_T_is(roar_cli, tmp_path):
     (tmp_path / "u.clf").write_text("q : type. a : q.\nf : U -> type.\n", encoding="utf-8")
     code, out, err = roar_cli("clf", tmp_path / "u.clf")
     assert code == 2 and "'U' is a variable, not a type family (CLF has no type variables)" in out + err
+
+
+def test_check_a_spec_with_a_functional_layer_named_on_the_command_line(roar_cli, tmp_path, checker_job):
+    """`check SPEC --functional MODULE`: the spec's outcomes come from MODULE, not from a SPEC.py
+    next to it; the same graph as the checker job that names the module in its file."""
+    import shutil
+    spec = tmp_path / "pick.roar"
+    shutil.copy(ROOT / "models" / "faulty" / "ordered_pick.roar", spec)
+    code, out, _ = roar_cli("check", spec, "-r", "cell::done == true", "--functional",
+                            ROOT / "models" / "faulty" / "reliable_tools.py", "--no-traces", "--json")
+    ref = checker_job("ordered_pick.toml")
+    job = json.loads(out)[0]
+    assert job["states"] == ref.graph.n_states and job["transitions"] == ref.graph.n_edges
+    code, _out, err = roar_cli("check", spec, "-r", "cell::done == true", "--functional", tmp_path / "nope.py")
+    assert code == 2 and "--functional" in err and "no such file" in err
+    code, _out, err = roar_cli("check", ROOT / "checker" / "ordered_pick.toml", "--functional",
+                               ROOT / "models" / "faulty" / "reliable_tools.py")
+    assert code == 2 and "a job file says its own" in err

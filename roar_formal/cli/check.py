@@ -33,6 +33,8 @@ def register(app: typer.Typer) -> None:
                                            "docs/semantics.md, Time)."),
         wait_timeout: Optional[int] = typer.Option(None, "--wait-timeout", help="With a spec, timed: a wait with "
                                                    "a period gives up after this many milliseconds."),
+        functional: Optional[Path] = typer.Option(None, "--functional", help="With a spec: this functional-layer "
+                                                  "module instead of the one next to it (SPEC.py)."),
         max_states: Optional[int] = typer.Option(None, "--max-states", help="Overrides every job's state bound."),
         max_seconds: Optional[float] = typer.Option(
             None, "--max-seconds",
@@ -86,7 +88,8 @@ def register(app: typer.Typer) -> None:
             if folder is not None:   # checked before any work starts
                 check_output_folder(folder, opt, list(paths))
         # every job file is checked before anything runs
-        jobs = load_jobs(paths, request=request, properties=props, time=time, wait_timeout=wait_timeout)
+        jobs = load_jobs(paths, request=request, properties=props, time=time, wait_timeout=wait_timeout,
+                         functional=functional)
         files = [j.path for j in jobs if not is_model_path(j.path)]
         if symmetry:   # every job named, as the bounds below (refused before anything runs)
             from ..verify.jobs import symmetry_refusals

@@ -706,10 +706,12 @@ def load_job(path: PathLike) -> Job:
 
 
 def load_jobs(paths: Sequence[PathLike], *, request: Optional[str] = None,
-              properties: Sequence[str] = (), time: Any = None, wait_timeout: Optional[int] = None) -> list[Job]:
+              properties: Sequence[str] = (), time: Any = None, wait_timeout: Optional[int] = None,
+              functional: Optional[PathLike] = None) -> list[Job]:
     """What ``roar-verify check PATH...`` checks: job files, the job files of folders (sorted), and
-    models or specs named directly (checked for ``properties``, a spec on ``request``, explored
-    untimed or, with ``time="timed"``, timed). Every job is read and checked before any runs."""
+    models or specs named directly (checked for ``properties``, a spec on ``request`` with the
+    functional layer ``functional`` or the module next to it, explored untimed or, with
+    ``time="timed"``, timed). Every job is read and checked before any runs."""
     from ..verify.jobs import find_jobs, job_for_model
     from ..verify.jobs import load_job as read_job
     ps = [Path(p) for p in paths]
@@ -719,6 +721,16 @@ def load_jobs(paths: Sequence[PathLike], *, request: Optional[str] = None,
     if wait_timeout is not None and not direct:
         raise RoarError("--wait-timeout is for a spec named on the command line; a job file says its own "
                         "([time] wait_timeout)")
+    if functional is not None:
+        specs = [j for j in direct if j.is_roar]
+        if not specs:
+            raise RoarError("--functional is for a spec named on the command line; a job file says its own "
+                            "(functional = \"module.py\")")
+        fn = Path(functional)
+        if not fn.is_file():
+            raise RoarError(f"--functional {fn}: no such file")
+        for j in specs:
+            j.functional = fn.resolve()
     timing = _timing(time, wait_timeout)
     if timing:
         if not direct:
