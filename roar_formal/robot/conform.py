@@ -34,7 +34,7 @@ from typing import Callable, Optional
 from ..clf.printer import show
 from ..clf.terms import Root
 from ..errors import Pos, RoarError
-from ..explore.replay import read_as, returned_values
+from ..explore.replay import match_renaming, read_as, returned_values
 from .activity import CallResult
 from .sim import classify
 
@@ -182,6 +182,9 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
     outcomes = []
     n = 0
     stands_for: dict = {}   # a value the robot answered (printed) -> the outcome's value for it
+    # the robot's fresh names -> the model's, as the steps so far matched them: of two instances of
+    # a rule that differ only by their names (two requests received), the one the robot took
+    renaming: dict = {}
     for rec in records:
         n += 1
         rule = rec.get("rule")
@@ -224,7 +227,12 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                     [f"{fname} -> {names[0]}"] + want[0],
                     [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing'}"]),
                     outcomes)
-            best = best_match(cands, state, prog, want, by_pending=True)
+            best = consistent_match(cands, state, prog, ([x for x in want[0] if x.startswith("pending ")][:1], []),
+                               renaming, pending_only=True)
+            if best is not None:
+                renaming = best[2]
+            else:
+                best = best_match(cands, state, prog, want, by_pending=True)
             outcomes.append((n, fname, _oname(best[0].rule, fc)))
             # the value the robot answered and the one the outcome stands for it with: in the
             # steps after, the trace's facts hold the first where the model's hold the second
@@ -241,6 +249,13 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                 [f"consumed: {x}" for x in want[0]] + [f"produced: {x}" for x in want[1]],
                 [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing (quiescent)'}"]),
                 outcomes)
+        got = consistent_match(cands, state, prog, want, renaming)
+        if got is None and stands_for:
+            got = consistent_match(cands, state, prog, tuple([read_as(x, stands_for) for x in w] for w in want),
+                              renaming)
+        if got is not None:   # the robot's step, its names those of the steps before
+            state, renaming = got[1], got[2]
+            continue
         choice, nxt, exact = best_match(cands, state, prog, want)
         if not exact and stands_for:
             # the same up to the values the outcomes abstract (a position read as "moving")
@@ -297,6 +312,22 @@ def replay_robot_trace(trace, header: dict, records: list, model, functional=Non
 
 def _oname(rule: str, fc: str) -> str:
     return rule[len(f"outcome_{fc}_"):]
+
+
+def consistent_match(cands, state, prog, want, names: dict, pending_only: bool = False):
+    """The first candidate whose printed step is the robot's up to a renaming of fresh names
+    consistent with ``names`` (the robot's names -> the model's, so far): ``(choice, next state,
+    the renaming extended)``, or None. With ``pending_only``, only the call an outcome answers
+    (its ``pending`` fact) is compared."""
+    for c in cands:
+        nxt, step = prog.successor(state, c)
+        got = _printed(step)
+        if pending_only:
+            got = (got[0][:1], [])
+        ren = match_renaming(want, got, names)
+        if ren is not None:
+            return c, nxt, ren
+    return None
 
 
 def best_match(cands, state, prog, want, by_pending: bool = False):

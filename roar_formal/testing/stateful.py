@@ -207,6 +207,10 @@ class _Lockstep:
         self.setup = setup
         self.moves: dict[tuple, list] = {}
         self.steps: dict[tuple, tuple] = {}
+        # a mirrored model state -> (itself, the robot's fresh names -> the model's as the steps to it
+        # matched them): of two instances of a rule that differ only by their names (two requests
+        # received), the model takes the one the robot took
+        self.renamings: dict[int, tuple] = {}
 
     def enabled(self, path: tuple, rstate: Any) -> list:
         """(choice or robot successor, agent or "robot", None or the robot step's label) of ``rstate``:
@@ -240,22 +244,36 @@ class _Lockstep:
         return hit
 
     def _mirror_agent(self, state: Any, step: Any) -> tuple[list, Optional[str]]:
-        from ..robot.conform import best_match
+        from ..explore.replay import match_renaming
+        from ..robot.conform import best_match, consistent_match
         sys = self.setup.system
         cands = [c for c in sys.program.steps(state) if c.rule == step.rule]
         if not cands:
             enabled = sorted({c.rule for c in sys.program.steps(state)})
             return [], (f"the robot run takes {step.rule}, which the model cannot take here (the model's enabled "
                         f"steps: {', '.join(enabled) or 'none'})")
-        choice, _nxt, _exact = best_match(cands, state, sys.program, _printed(step))
+        ren = self._renaming(state)
+        want = _printed(step)
+        got = consistent_match(cands, state, sys.program, want, ren)
+        choice = got[0] if got is not None else best_match(cands, state, sys.program, want)[0]
         succ = sys._successor(state, choice)
+        # (the successor's fresh names are its own, not those of the trial step matched above)
+        self._keep_renaming(succ.state, match_renaming(want, _printed(succ.step), ren) or ren)
         return [(succ.state, succ.step, succ.label)], None
+
+    def _renaming(self, state: Any) -> dict:
+        got = self.renamings.get(id(state))
+        return got[1] if got is not None and got[0] is state else {}
+
+    def _keep_renaming(self, state: Any, ren: dict) -> None:
+        self.renamings[id(state)] = (state, ren)
 
     def _mirror_robot(self, state: Any, step: Any, t: float) -> tuple[list, Optional[str]]:
         """The model's outcome steps for the calls a launch or an advance answered."""
         from ..clf.printer import show
         from ..roar import vocabulary as V
-        from ..robot.conform import best_match
+        from ..explore.replay import match_renaming
+        from ..robot.conform import best_match, consistent_match
         from ..roar.run import list_items
         from ..robot.sim import classify
         sys = self.setup.system
@@ -287,8 +305,13 @@ class _Lockstep:
                 cands = rules
             if not cands:
                 return out, f"the robot answered {shown}({args}), but the model has no answer to it here"
-            choice, _nxt, _exact = best_match(cands, state, sys.program, ([show(pend)], []), by_pending=True)
+            ren = self._renaming(state)
+            got = consistent_match(cands, state, sys.program, ([show(pend)], []), ren, pending_only=True)
+            choice = got[0] if got is not None else \
+                best_match(cands, state, sys.program, ([show(pend)], []), by_pending=True)[0]
             succ = sys._successor(state, choice)
+            self._keep_renaming(succ.state, match_renaming(([show(pend)], []), (_printed(succ.step)[0][:1], []), ren)
+                                or ren)
             out.append((succ.state, succ.step, succ.label))
             state = succ.state
         return out, None
