@@ -37,6 +37,9 @@ class Line:
     def text(self) -> str:
         return "".join(t for t, _s in self.segments)
 
+    def __str__(self) -> str:
+        return self.text
+
 
 @dataclass
 class Lines:
@@ -59,6 +62,10 @@ class Lines:
 
     def __len__(self) -> int:
         return len(self.items)
+
+    def __getitem__(self, i):
+        """Line ``i`` (a :class:`Line`; ``.text`` is its plain text), or a slice of them."""
+        return self.items[i]
 
     def text(self) -> str:
         """The document as plain text, one line per line (control characters made visible)."""

@@ -108,3 +108,23 @@ def test_check_a_spec_with_a_functional_layer_named_on_the_command_line(roar_cli
     code, _out, err = roar_cli("check", ROOT / "checker" / "ordered_pick.toml", "--functional",
                                ROOT / "models" / "faulty" / "reliable_tools.py")
     assert code == 2 and "a job file says its own" in err
+
+
+def test_trial_messages_say_what_was_meant(roar_cli, tmp_path):
+    """Found by a trial: a misspelt [robot] key gets a did-you-mean; a bound written at the top of a
+    job file says it belongs in [bounds]; a truncated trace line does not leave "starting at"
+    dangling; a spec given to prove --model says what a TCA model is."""
+    job = tmp_path / "k.toml"
+    job.write_text(f'name = "x"\nmodel = "{ROOT / "models" / "philosophers" / "ok.clf"}"\nmax_state = 3\n')
+    code, _out, err = roar_cli("check", job)
+    assert code == 2 and "(did you mean 'max_states'?; the bounds go in a [bounds] table)" in err
+    job.write_text(f'name = "x"\nspec = "{ROOT / "models" / "conflict.roar"}"\nrequest = "mission::done == true"\n'
+                   f'[robot]\nscenario = "{ROOT / "models" / "scenarios" / "gripper.toml"}"\nquantize = "exact"\n')
+    code, _out, err = roar_cli("check", job)
+    assert code == 2 and "unknown key 'quantize' in [robot] (did you mean 'quantise'?)" in err
+    trace = tmp_path / "t.jsonl"
+    trace.write_text('{"kind": "roar-run", "spec": "unfinished\n')
+    code, _out, err = roar_cli("tca-check", trace)
+    assert code == 2 and "Unterminated string starting here" in err and "starting at" not in err
+    code, _out, err = roar_cli("prove", "--model", ROOT / "models" / "conflict.roar")
+    assert code == 2 and "is a ROAR spec; a TCA model is a task-tree TOML file" in err

@@ -98,7 +98,8 @@ def register(app: typer.Typer) -> None:
                                (lambda k, r: console.print(Text(f"  run {k + 1}/{runs}: seed {r.seed}, faults "
                                                                 f"{', '.join(r.faults) or 'none'}: request {r.outcome} at "
                                                                 f"t = {r.time:.2f} s, {r.calls} calls"
-                                                                + (f", DIVERGES at step {r.divergence}" if r.divergence
+                                                                + (f", DIVERGES at step {r.divergence.step} ({r.divergence.rule}: "
+                                                                   f"{r.divergence.reason})" if r.divergence
                                                                    else "")), soft_wrap=True)))
         if as_json:
             print(json.dumps(rep.as_json(), indent=2))

@@ -276,6 +276,12 @@ def load_model(path) -> Model:
     path = Path(path)
     from ..inputs import check_input_file
     check_input_file(path, Pos(str(path), 1, 1))
+    if path.suffix in (".roar", ".ability", ".clf"):
+        what = "a .clf program" if path.suffix == ".clf" else "a ROAR spec"
+        raise RoarError(f"{path} is {what}; a TCA model is a task-tree TOML file (as models/ambler/ambler.toml): "
+                        "its messages, their parents and the SeqAch declarations (docs/tca.md). To check a "
+                        "spec's runs against the axioms, write a trace (run --trace) and give it to tca-check",
+                        Pos(str(path), 1, 1))
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:

@@ -147,7 +147,8 @@ def _parse(text: str, file: str, line: int) -> Optional[dict]:
     try:
         data = json.loads(text, parse_float=Decimal, parse_int=_bounded_int, parse_constant=_no_constants)
     except json.JSONDecodeError as exc:
-        raise RoarError(f"malformed JSON: {exc.msg}; expected one JSON object per line", Pos(file, line, exc.colno))
+        msg = exc.msg[:-3] + " here" if exc.msg.endswith(" at") else exc.msg   # ("Unterminated string starting at")
+        raise RoarError(f"malformed JSON: {msg}; expected one JSON object per line", Pos(file, line, exc.colno))
     except ValueError as exc:
         raise RoarError(f"malformed JSON: {exc}", Pos(file, line, 1))
     except RecursionError:

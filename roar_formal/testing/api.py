@@ -125,11 +125,17 @@ def as_budget(budget: BudgetLike) -> Budget:
     return Budget(**dict(budget))
 
 
+def listed(x) -> list:
+    """A list argument given as one string (``faults="grip:1"``, ``properties="deadlock"``) as a
+    list of that one item, rather than of its characters; any other iterable as a list."""
+    return [x] if isinstance(x, (str, Path)) else list(x)
+
+
 def parse_faults(faults: Iterable[FaultLike]) -> list["Fault"]:
     """``--fault`` values (``NAME``, ``NAME:K``, ``NAME=OUTCOME``) as faults; a malformed one is a
-    :class:`RoarError` saying the expected form. Fault objects pass through."""
+    :class:`RoarError` saying the expected form. Fault objects pass through; one string is one fault."""
     from ..roar.run import parse_fault
-    return [f if not isinstance(f, str) else parse_fault(f) for f in faults]
+    return [f if not isinstance(f, str) else parse_fault(f) for f in listed(faults)]
 
 
 # Specs and models given as text live in one temporary folder of the process: the explorer
@@ -292,6 +298,7 @@ class AgentSpec:
         ``wait_timeout`` ms (``--time``, ``--wait-timeout``; docs/semantics.md, Time).
         """
         from ..roar.run import parse_crash
+        faults, crashes = listed(faults), listed(crashes)   # (one string is one fault, one crash)
         texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
         crashes = [parse_crash(c) for c in ([crashes] if isinstance(crashes, str) else crashes)]
         if scenario is not None:
@@ -365,7 +372,8 @@ class AgentSpec:
         from ..verify.jobs import Job, PropertySpec
         # marked "(a default property)" as check marks them, unless never or incompatible add one that is not
         defaulted = properties is None and not never and not incompatible
-        properties = SPEC_DEFAULTS if properties is None else properties
+        properties = SPEC_DEFAULTS if properties is None else listed(properties)
+        progress, sequence_recipes = listed(progress), listed(sequence_recipes)
         wanted = list(properties) + (["incompatible-tasks"] if incompatible and "incompatible-tasks" not in properties
                                      else [])
         props = _properties(wanted, never, ROAR_PROPERTIES)
@@ -404,6 +412,10 @@ class AgentSpec:
         from ..verify.jobs import Job, PropertySpec, RobotSetup
         from ..robot.explore import Abstraction
         allowed = ROAR_PROPERTIES + ("robot-invariant",)
+        properties, on, progress = listed(properties), listed(on), listed(progress)
+        robot_never, robot_always = listed(robot_never), listed(robot_always)
+        if not isinstance(faults, dict):
+            faults = listed(faults)
         props = _properties([p for p in properties if p != "robot-invariant"], never, allowed)
         pos = _caller_pos()
         if robot_never or robot_always:
@@ -460,7 +472,7 @@ class AgentSpec:
         binding = load_robot_binding(self._file(), self.functional)
         model = compile_spec(self.ast, request, registry=binding.robot, functional="python",
                              request_at=_request_at(request))
-        world, prims = split_faults(list(faults), sc, model)
+        world, prims = split_faults(listed(faults), sc, model)
         if prims:
             raise RoarError("conform draws the scenario's fault points; primitive faults "
                             f"({', '.join(map(str, prims))}) are not allowed here")

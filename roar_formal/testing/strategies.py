@@ -25,6 +25,7 @@ alike for every type is exercised, and the examples stay readable.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import PurePath
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional, Union
@@ -327,10 +328,30 @@ def _request_candidates(spec: AgentSpec) -> list[str]:
     return out
 
 
+def _spec_of(spec: Any, who: str) -> AgentSpec:
+    """An :class:`AgentSpec`, or the spec at a path (as the helpers take one)."""
+    if isinstance(spec, (str, PurePath)):
+        from .api import load_spec
+        return load_spec(spec)
+    if not isinstance(spec, AgentSpec):
+        raise InvalidArgument(f"{who} takes an AgentSpec or the path of a spec, not {type(spec).__name__}")
+    return spec
+
+
+def _target_of(target: Any, who: str) -> Union[AgentSpec, ClfModel]:
+    """An :class:`AgentSpec` or :class:`ClfModel`, or the spec or model at a path."""
+    if isinstance(target, (str, PurePath)):
+        from .api import load
+        return load(target)
+    return target
+
+
 def requests(spec: AgentSpec) -> st.SearchStrategy[str]:
-    """Requests ``spec`` accepts: a task's post-condition or ``agent::var == literal``, qualified,
-    with or without a ``where`` clause writing a controllable variable. Shrinks towards the first
-    task's post-condition of the first agent, without ``where``."""
+    """Requests ``spec`` (an :class:`AgentSpec`, or a spec's path) accepts: a task's post-condition
+    or ``agent::var == literal``, qualified, with or without a ``where`` clause writing a
+    controllable variable. Shrinks towards the first task's post-condition of the first agent,
+    without ``where``."""
+    spec = _spec_of(spec, "requests()")
     cands = _request_candidates(spec)
     if not cands:
         raise InvalidArgument(f"{spec.name}: no request to generate: no task post-condition or variable of "
@@ -353,7 +374,9 @@ def fault_schedules(spec: AgentSpec, *, max_faults: int = 3, max_call: int = 3, 
     ``outcomes`` ``f:K=OUTCOME`` for the outcomes the functional layer declares. Shrinks towards
     the empty schedule, then one fault of the first call of the first function. The values are
     :class:`~roar_formal.testing.api.ScheduledFault` strings: a run lists one that matched no call
-    (``f:3`` when f is called twice) in ``unused_faults`` rather than refusing it."""
+    (``f:3`` when f is called twice) in ``unused_faults`` rather than refusing it. ``spec`` is an
+    :class:`AgentSpec` or a spec's path."""
+    spec = _spec_of(spec, "fault_schedules()")
     counts = Counter(f for _a, f in spec.functions())
     reg = spec.registry() if outcomes else None
     faults: list[str] = []   # every fault the schedule may hold, simplest first (plain strings print well)
@@ -432,7 +455,9 @@ def paths(target: Union[AgentSpec, ClfModel], request: Optional[str] = None, *,
           max_length: int = 40) -> st.SearchStrategy[ModelPath]:
     """Paths of up to ``max_length`` steps from the start state (a spec's compiled model, primitives
     as their declared outcomes, or a .clf model's ``#exec``), each step one of the state's enabled
-    steps. Shrinks towards shorter paths and each state's first enabled step."""
+    steps. Shrinks towards shorter paths and each state's first enabled step. ``target`` may also
+    be the path of a spec or model."""
+    target = _target_of(target, "paths()")
     cache: dict = {}
 
     @st.composite

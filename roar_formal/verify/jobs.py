@@ -148,6 +148,14 @@ def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
                 hint = (f" ('{k}' belongs in a property file, which the job names with properties = "
                         f"[\"file.toml\"]" + ("; this file looks like one: a folder of jobs should not hold it"
                                                if "check" in d else "") + ")")
+            if not hint:
+                from ..roar.props import did_you_mean
+                hint = did_you_mean(str(k), sorted(allowed))
+            if not hint and where == "a job file":
+                from ..roar.props import did_you_mean
+                bound = did_you_mean(str(k), ["max_states", "max_seconds", "max_memory_mb"])
+                if bound:
+                    hint = bound[:-1] + "; the bounds go in a [bounds] table)"
             raise RoarError(f"unknown key '{k}' in {where}{hint}; expected one of: {', '.join(sorted(allowed))}",
                             Pos(str(path), _line_of(path, k), 1))
 
