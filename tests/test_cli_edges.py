@@ -128,3 +128,15 @@ def test_trial_messages_say_what_was_meant(roar_cli, tmp_path):
     assert code == 2 and "Unterminated string starting here" in err and "starting at" not in err
     code, _out, err = roar_cli("prove", "--model", ROOT / "models" / "conflict.roar")
     assert code == 2 and "is a ROAR spec; a TCA model is a task-tree TOML file" in err
+
+
+def test_replay_on_robot_of_a_counterexample_of_another_spec_says_so(roar_cli, tmp_path):
+    """replay --on-robot checks the trace's spec before compiling the trace's request on the spec
+    given (which failed on a variable the other spec has: "agent 'mission' has no variable")."""
+    code, _out, err = roar_cli("check", ROOT / "checker" / "conflict.toml", "--traces", tmp_path / "tr")
+    assert code == 0, err
+    trace = tmp_path / "tr" / "conflict.livelock.jsonl"
+    code, _out, err = roar_cli("replay", trace, "--model", ROOT / "models" / "faulty" / "camera_retry.roar",
+                               "--on-robot", ROOT / "models" / "scenarios" / "ptu_cable.toml")
+    assert code == 2 and "was recorded on another spec than" in err and "conflict.roar" in err
+    assert "has no variable" not in err

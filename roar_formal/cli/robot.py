@@ -159,6 +159,7 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
         return _replay_robot_backed(trace, header, records, model, on_robot, loops, png, functional, force, console)
     if on_robot is not None:
         _check_output(png, None, model, on_robot)
+        _same_spec(trace, header, model, force)
         from ..robot.onrobot import replay_on_robot
         spec_ast, compiled, binding, sc = prepare(model, request, on_robot, functional)
         world_faults, prims = split_faults(fault, sc, compiled)
@@ -200,6 +201,26 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     for line in rp.divergence.lines():
         console.print(Text(line, style="red" if line.startswith("step") else ""), soft_wrap=True)
     return 1
+
+
+def _same_spec(trace: Path, header: dict, model: Path, force: bool) -> None:
+    """Refuse (unless ``force``) to drive the robot with a counterexample recorded on another spec
+    than ``model``: its spec files' digests, as the trace's fingerprint records them, must be
+    ``model``'s (the functional-layer module may differ: on the robot it is the robot's binding).
+    Checked before the trace's request is compiled on the spec, which would otherwise fail on a
+    name the other spec has."""
+    from ..roar.sources import spec_fingerprint
+    from ..roar.spec import load_spec
+    recorded = header.get("fingerprint")
+    files = recorded.get("files") if isinstance(recorded, dict) else None
+    if not isinstance(files, dict) or force:
+        return
+    theirs = {k: v for k, v in files.items() if str(k).startswith("spec:")}
+    mine = {k: v for k, v in spec_fingerprint(model, load_spec(model), None)["files"].items() if k.startswith("spec:")}
+    if theirs and sorted(theirs.values()) != sorted(mine.values()):
+        named = ", ".join(k.split(":", 1)[1] for k in theirs)
+        raise RoarError(f"{trace}: the counterexample was recorded on another spec than {model} (recorded: "
+                        f"{named}; the files differ): replay it with --model naming that spec, or pass --force")
 
 
 def _replay_robot_backed(trace: Path, header: dict, records: list, model: Path, on_robot: Optional[Path], loops: int,
