@@ -295,7 +295,11 @@ class _Checker:
         path2 = " > ".join(tree.path(d.m2, first.id))
         end = interp.time("end", last)
         ends = f"ends at {show_value(end)}" if end is not LATE else "has not ended when the trace stops"
-        why = (f"SeqAch({d.m1}, {d.m2}) declared at line {d.pos.line}: {last.kind} {last.id}{_named(last)} ({path1}) "
+        texts = [f"{m}: {c}" for m in (d.m1, d.m2)
+                 if (c := getattr(tree.messages.get(m), "constraint", None))]   # as the spec wrote them
+        said = f" ({'; '.join(texts)})" if texts else ""
+        header = " (the trace's header)" if d.pos.line == 1 and str(d.pos.file).endswith(".jsonl") else ""
+        why = (f"SeqAch({d.m1}, {d.m2}){said} declared at line {d.pos.line}{header}: {last.kind} {last.id}{_named(last)} ({path1}) "
                f"{ends}, after {first.kind} {first.id}{_named(first)} ({path2}) starts at "
                f"{show_value(interp.time('start', first))}; {overlapping} pair(s) of commands/monitors overlap")
         msgs = (d.m1, d.m2, last.id, first.id)

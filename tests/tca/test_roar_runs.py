@@ -81,6 +81,10 @@ def test_the_ordered_pick_counterexample_breaks_sequential_achievement(cli, caps
     a, b = seq[0].messages[:2]
     assert report.tree.messages[a].kind == report.tree.messages[b].kind == "goal"
     assert f"SeqAch({a}, {b})" in out
+    # the pair said with its constraints, as the spec wrote them (not by request numbers alone)
+    said = f"({a}: {report.tree.messages[a].constraint}; {b}: {report.tree.messages[b].constraint})"
+    assert report.tree.messages[a].constraint and said in " ".join(out.split())
+    assert "declared at line 1 (the trace's header)" in " ".join(out.split())
     # --json: the same violations as the library's report, and the same exit status
     code, out, err = cli(capsys, "tca-check", trace, "--json")
     assert code == 1, err
