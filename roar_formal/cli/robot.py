@@ -172,7 +172,10 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
         console.print(Text(f"{trace}: {len(records)} steps of {header.get('kind', 'a trace')} for request "
                            f"{request}, on scenario {sc.name}" + (f" with {', '.join(world_faults)}" if world_faults
                                                                   else "")), soft_wrap=True)
+        # a path that is not a deadlock's ends where a safety property is broken: it need not stay there
+        stuck = header.get("property") in (None, "deadlock")
         res = replay_on_robot(compiled, binding.robot, sc, records, seed=seed, faults=world_faults, loops=loops,
+                              stuck=stuck,
                               on_line=lambda line: console.print(Text(line), soft_wrap=True))
         console.print(Text(res.message, style="green" if res.realised else "red"), soft_wrap=True)
         x, y, th = res.pose

@@ -28,7 +28,7 @@ from ..errors import RoarError
 from ..roar import vocabulary as V
 from ..roar.run import Narrator, Values, list_items, primitive_error, site_of
 from .activity import Activity, CallResult
-from .conform import TIMING_RULES, best_match
+from .conform import TIMING_RULES, best_match, consistent_match
 from .robot import Robot
 from .sim import DEFAULT_POLL, CallRecord, classify
 
@@ -49,8 +49,11 @@ class OnRobot:
 
 
 def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 0, faults=(),
-                    loops: int = 3, on_line: Optional[Callable[[str], None]] = None) -> OnRobot:
-    """Drive ``model`` (compiled in run mode) on the robot in the order of the counterexample ``records``."""
+                    loops: int = 3, on_line: Optional[Callable[[str], None]] = None, stuck: bool = True) -> OnRobot:
+    """Drive ``model`` (compiled in run mode) on the robot in the order of the counterexample ``records``.
+    A counterexample without a cycle is realised when every step happened on the robot and, with
+    ``stuck`` (a deadlock's), the robot run is stuck where it ends; a path to a state a safety
+    property forbids (``stuck`` false) is realised once that state is reached."""
     stem = [r for r in records if not r.get("loop")]
     cycle = [r for r in records if r.get("loop")]
     order = stem + cycle * max(1, loops) if cycle else stem
@@ -69,6 +72,7 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
     by_dest: dict = {}          # dest -> CallRecord
     running: dict = {}          # robot handle -> dest
     answered: dict = {}         # dest -> CallResult (ended on the robot, not yet consumed by the counterexample)
+    renaming: dict = {}         # the counterexample's fresh names -> this run's, as its steps matched them
 
     def say(text: str) -> None:
         lines.append(text)
@@ -176,7 +180,11 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
             enabled = sorted({c.rule for c in prog.steps(state)})
             return done(False, n - 1, f"diverges at step {n}: the counterexample takes {rule}; on the robot the "
                                       f"enabled rules are {', '.join(enabled) or 'none'}")
-        choice, state, _exact = best_match(choices, state, prog, want)
+        got = consistent_match(choices, state, prog, want, renaming)
+        if got is not None:   # the instance the counterexample took, by the names its steps matched
+            choice, state, renaming = got
+        else:
+            choice, state, _exact = best_match(choices, state, prog, want)
         step_printed = rec.get("event") or {}
         text = step_printed.get("text") if isinstance(step_printed, dict) else None
         if text:
@@ -188,6 +196,9 @@ def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 
     if cycle:
         return done(True, len(order), f"realised: the cycle of {len(cycle)} steps was driven {max(1, loops)} times "
                                       f"on the robot (t = {robot.time:.2f} s)")
+    if not stuck:
+        return done(True, len(order), f"realised: every step of the counterexample happened on the robot, to the "
+                                      f"state it ends in (t = {robot.time:.2f} s)")
     # a deadlock: nothing may happen any more on the robot either
     advance(until=robot.horizon)
     enabled = prog.steps(state)

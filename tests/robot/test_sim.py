@@ -401,3 +401,11 @@ def test_the_conflict_livelock_happens_on_the_robot_only_with_the_cable(tmp_path
     free = replay_on_robot(model, binding.robot, sc, records, faults=[], loops=3)
     assert not free.realised
     assert "blocked" in free.message and "turned" in free.message
+    # the lasso's stem alone, as a path: a deadlock's must leave the robot stuck where it ends (the
+    # run goes on here), a safety property's is realised once its last state is reached
+    stem = [r for r in records if not r.get("loop")]
+    as_deadlock = replay_on_robot(model, binding.robot, sc, stem, faults=["cable"])
+    assert not as_deadlock.realised and "goes on" in as_deadlock.message
+    as_safety = replay_on_robot(model, binding.robot, sc, stem, faults=["cable"], stuck=False)
+    assert as_safety.realised and as_safety.steps == as_safety.total == len(stem)
+    assert "every step of the counterexample happened on the robot" in as_safety.message
