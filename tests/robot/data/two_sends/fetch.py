@@ -2,8 +2,8 @@
 import math
 
 from roar_formal.roar.functional import Outcome, Registry
-from roar_formal.robot.activity import Read, failed
-from roar_formal.robot.robot import FollowPath, Grip
+from roar_formal.robot.activity import Read
+from roar_formal.robot.robot import Grip
 
 OUTCOMES = {
     "go_to": [Outcome("arrived", True), Outcome("failed", False)],
@@ -28,34 +28,19 @@ def _in_reach(robot):
     return math.hypot(ox - x, oy - y) < 0.6
 
 
-class GoTo(FollowPath):
-    """Drive to a place (A*), or up to an object so that it sits between the jaws (from models/pick_place.py)."""
+def _bundled_go_to():
+    """The bundled pick-and-place model's GoTo (drive to a place by A*, or up to an object so that
+    it sits between the jaws): loaded from models/pick_place.py rather than copied."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[4] / "models" / "pick_place.py"
+    spec = importlib.util.spec_from_file_location("_two_sends_pick_place", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.GoTo
 
-    name = "go_to"
 
-    def __init__(self, target):
-        super().__init__(None, timeout=60.0, speed=0.4)
-        self.target = str(target)
-
-    def start(self, robot):
-        w = robot.world
-        x, y, _ = w.base.odometry
-        if self.target in w.objects:
-            ox, oy = w.objects[self.target].position
-            d = math.hypot(ox - x, oy - y)
-            if d < 1e-6:
-                return failed("at_object", False)
-            cfg = robot.scenario.robot
-            back = cfg.radius + cfg.gripper.reach / 2.0
-            self.path = [(x, y), (ox - (ox - x) * back / d, oy - (oy - y) * back / d)]
-        elif self.target in robot.scenario.places:
-            path = robot.plan_to(robot.scenario.places[self.target], f"go_to {self.target}")
-            if path is None:
-                return failed("no_path", False)
-            self.path = path
-        else:
-            return failed("unknown_place", False)
-        return super().start(robot)
+GoTo = _bundled_go_to()
 
 
 def robot_registry() -> Registry:
