@@ -57,6 +57,12 @@ class QueryError(RoarError):
     """A directive whose outcome differs from what it declared (e.g. solution count)."""
 
 
+def json_message(exc) -> str:
+    """A ``json.JSONDecodeError``'s message for a located error: Python's ends some with "at"
+    (its own text gives the position next), so that word becomes "here"."""
+    return exc.msg[:-3] + " here" if exc.msg.endswith(" at") else exc.msg
+
+
 def _moved(pos: Optional[Pos], tag: str, origin: Pos) -> Optional[Pos]:
     if pos is None or pos.file != tag:
         return pos

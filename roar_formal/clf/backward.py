@@ -75,7 +75,7 @@ class Backward:
         self.on_monad: Optional[Callable[[Run], None]] = None
         self.proofs = False  # build monadic proof terms (names for every fact in the monad)
         self._names = 0
-        # families whose goals are tabled (see _tabled_atom): set by a caller that asks only
+        # families whose goals are tabled (see _tabled_answers): set by a caller that asks only
         # whether a goal has a proof, never for the proof
         self.tabled: frozenset = frozenset()
         self._table: dict = {}

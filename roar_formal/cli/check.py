@@ -157,7 +157,7 @@ def register(app: typer.Typer) -> None:
         short = [(r, ps) for r, ps in short if ps]   # every verdict a budget left open, expected or not
         if short and not as_json:
             names = ", ".join(f"{r.name} ({', '.join(ps)})" for r, ps in short)
-            console.print(styled(("incomplete: ", "yellow"), f"{names}: {_budget_hint(results)}"
+            console.print(styled(("incomplete: ", "yellow"), f"{names}: {_budget_hint([r.result for r, _ps in short])}"
                                  + ("" if not ok else " (exit status 4)")), soft_wrap=True)
         if not ok:
             raise typer.Exit(1)
@@ -303,11 +303,11 @@ def _interactive_replay(console: Console, rep, verbose: bool) -> None:
             console.print(f"unknown command {cmd!r}; {_REPLAY_HELP}", style="yellow")
 
 
-def _budget_hint(results) -> str:
-    """What to do about searches that ran out of budget: the bounds that ran out, by their
-    options, and the modes for a model too large to exhaust."""
-    short = [r.result for r in results if any(v.status == "incomplete" for v in r.result.verdicts.values())]
-    if short and all(x.job.search == "swarm" for x in short):   # its members stopped at their own bound
+def _budget_hint(short: list) -> str:
+    """What to do about the searches of ``short`` (job results with a verdict left open) that ran
+    out of budget: the bounds that ran out, by their options, and the modes for a model too large
+    to exhaust."""
+    if all(x.job.search == "swarm" for x in short):   # its members stopped at their own bound
         return ("no randomized search found a violation of these, nor covered the state space; more or longer ones may "
                 "([swarm] runs and max_states in the job file)")
     reasons = {x.graph.stop_reason for x in short}

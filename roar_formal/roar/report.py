@@ -71,12 +71,11 @@ def growing_variables(model: CompiledModel, graph, steps) -> list[str]:
         if cell not in model.cells or len(seen) < 4:
             continue
         vals = sorted((value_of(v), d) for v, d in seen.items())
-        for run in (vals[-4:], vals[:4][::-1]):   # the largest values, growing; the smallest, shrinking
+        for how, run in (("growing", vals[-4:]), ("shrinking", vals[:4][::-1])):
             ds = [d for _v, d in run]
             if all(a < b for a, b in zip(ds, ds[1:])) and ds[-1] >= deepest - max(2, deepest // 10):
                 agent, var = model.cells[cell]
-                out.append(f"{agent}::{var} kept {'growing' if run is not vals[:4][::-1] else 'shrinking'} "
-                           f"as the search went deeper ("
+                out.append(f"{agent}::{var} kept {how} as the search went deeper ("
                            + ", ".join(f"{format_value(v)} at depth {d}" for v, d in run) + f", of {deepest})")
                 break
     return sorted(out)

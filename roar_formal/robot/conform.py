@@ -227,8 +227,8 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                     [f"{fname} -> {names[0]}"] + want[0],
                     [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing'}"]),
                     outcomes)
-            best = consistent_match(cands, state, prog, ([x for x in want[0] if x.startswith("pending ")][:1], []),
-                               renaming, pending_only=True)
+            called = ([x for x in want[0] if x.startswith("pending ")][:1], [])
+            best = consistent_match(cands, state, prog, called, renaming, pending_only=True)
             if best is not None:
                 renaming = best[2]
             else:
@@ -251,8 +251,8 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
                 outcomes)
         got = consistent_match(cands, state, prog, want, renaming)
         if got is None and stands_for:
-            got = consistent_match(cands, state, prog, tuple([read_as(x, stands_for) for x in w] for w in want),
-                              renaming)
+            read = tuple([read_as(x, stands_for) for x in w] for w in want)
+            got = consistent_match(cands, state, prog, read, renaming)
         if got is not None:   # the robot's step, its names those of the steps before
             state, renaming = got[1], got[2]
             continue

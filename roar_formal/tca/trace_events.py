@@ -25,7 +25,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Iterable, Optional, Union
 
-from ..errors import Pos, RoarError
+from ..errors import Pos, RoarError, json_message
 from .vocabulary import KINDS
 
 MARKS = ("started", "ended", "achieving_started", "achieving_ended")
@@ -147,8 +147,8 @@ def _parse(text: str, file: str, line: int) -> Optional[dict]:
     try:
         data = json.loads(text, parse_float=Decimal, parse_int=_bounded_int, parse_constant=_no_constants)
     except json.JSONDecodeError as exc:
-        msg = exc.msg[:-3] + " here" if exc.msg.endswith(" at") else exc.msg   # ("Unterminated string starting at")
-        raise RoarError(f"malformed JSON: {msg}; expected one JSON object per line", Pos(file, line, exc.colno))
+        raise RoarError(f"malformed JSON: {json_message(exc)}; expected one JSON object per line",
+                        Pos(file, line, exc.colno))
     except ValueError as exc:
         raise RoarError(f"malformed JSON: {exc}", Pos(file, line, 1))
     except RecursionError:

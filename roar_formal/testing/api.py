@@ -300,7 +300,7 @@ class AgentSpec:
         from ..roar.run import parse_crash
         faults, crashes = listed(faults), listed(crashes)   # (one string is one fault, one crash)
         texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
-        crashes = [parse_crash(c) for c in ([crashes] if isinstance(crashes, str) else crashes)]
+        crashes = [parse_crash(c) for c in crashes]
         if scenario is not None:
             if crashes:
                 raise RoarError("crashes (--crash) are for runs on the model; on the robot, faults are the "

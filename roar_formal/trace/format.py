@@ -24,7 +24,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from ..errors import Pos, RoarError
+from ..errors import Pos, RoarError, json_message
 
 VERSION = 1
 
@@ -152,7 +152,7 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
         try:
             rec = json.loads(line)
         except json.JSONDecodeError as exc:
-            raise RoarError(f"not a JSON object: {exc.msg[:-3] + ' here' if exc.msg.endswith(' at') else exc.msg}", Pos(str(path), n, exc.colno)) from None
+            raise RoarError(f"not a JSON object: {json_message(exc)}", Pos(str(path), n, exc.colno)) from None
         except RecursionError:
             raise RoarError("not a JSON object: nested too deeply", Pos(str(path), n, 1)) from None
         except ValueError as exc:   # e.g. an integer beyond Python's int-string limit

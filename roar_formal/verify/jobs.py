@@ -140,6 +140,10 @@ PROPERTY_KEYS = {"description", "check", "livelock", "deadlock", "sequential-ach
                  "robot-invariant", "temporal", "incompatible-tasks"}
 
 
+#: the keys of a job's [bounds] table
+BOUND_KEYS = ("max_states", "max_seconds", "max_memory_mb")
+
+
 def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
     for k in d:
         if k not in allowed:
@@ -151,11 +155,9 @@ def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
             if not hint:
                 from ..roar.props import did_you_mean
                 hint = did_you_mean(str(k), sorted(allowed))
-            if not hint and where == "a job file":
-                from ..roar.props import did_you_mean
-                bound = did_you_mean(str(k), ["max_states", "max_seconds", "max_memory_mb"])
-                if bound:
-                    hint = bound[:-1] + "; the bounds go in a [bounds] table)"
+                near = did_you_mean(str(k), BOUND_KEYS) if not hint and where == "a job file" else ""
+                if near:   # " (did you mean 'max_states'?)" with where it goes
+                    hint = near[:-1] + "; the bounds go in a [bounds] table)"
             raise RoarError(f"unknown key '{k}' in {where}{hint}; expected one of: {', '.join(sorted(allowed))}",
                             Pos(str(path), _line_of(path, k), 1))
 
@@ -689,7 +691,7 @@ def load_job(path: str | Path) -> Job:
         job.symmetry_at = _value_pos(path, "symmetry") if v else None
     if "bounds" in d:
         b = _typed(d, "bounds", dict, path, "a job file")
-        _expect_keys(b, {"max_states", "max_seconds", "max_memory_mb"}, "[bounds]", path)
+        _expect_keys(b, set(BOUND_KEYS), "[bounds]", path)
         job.budget = Budget(
             max_states=_bound(b, "max_states", path, "a whole number of states, at least 1", 1, integer=True),
             max_seconds=_bound(b, "max_seconds", path, "a number of seconds above 0", 0, integer=False),

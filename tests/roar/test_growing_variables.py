@@ -44,3 +44,12 @@ def test_a_bounded_counter_cut_by_the_same_budget_is_not_named(tmp_path):
     assert not res.graph.complete and max(res.graph.depth) >= 44
     assert not any("kept growing" in v.message for v in res.verdicts.values())
     assert not any(v.details.get("growing") for v in res.verdicts.values())
+
+
+def test_a_counter_that_only_decreases_is_named_as_shrinking(tmp_path):
+    text = (DATA / "unbounded.roar").read_text(encoding="utf-8")
+    down = text.replace("set tries tries + 1;", "set tries tries - 1;")
+    assert down != text
+    res = _run(tmp_path, down, 400)
+    v = res.verdicts["deadlock"]
+    assert "w::tries kept shrinking as the search went deeper" in v.message and "kept growing" not in v.message
