@@ -281,10 +281,11 @@ def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
     model = res.roar[0]
     for p in ajob.props.check:
         a, r = ares.verdicts[p], res.verdicts[p]
-        if a.status == r.status:
+        if "incomplete" in (a.status, r.status):   # (both incomplete is no agreement either)
+            why = "no comparison: " + _out_of_budget(a.status == "incomplete" and ares.graph,
+                                                     r.status == "incomplete" and res.graph)
+        elif a.status == r.status:
             why = "agree"
-        elif "incomplete" in (a.status, r.status):
-            why = "no comparison: a search ran out of budget"
         elif a.status == "violated":
             unseen = _unseen_outcomes(ares, a, model, seen)
             why = ("the abstract counterexample is not realised by this robot: "
@@ -296,6 +297,19 @@ def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
                    "(an unsound model)")
             res.mismatches.append(f"{p}: abstract model {a.status}, robot {r.status}: {why}")
         run.comparison.append((p, a.status, r.status, why))
+
+
+def _out_of_budget(abstract, robot) -> str:
+    """Which of the two searches (their graphs, False if complete) ran out of budget, and where."""
+    def where(g) -> str:
+        return f"{g.n_states:,} states" + (f"; {g.stop_reason}" if g.stop_reason else "")
+    if abstract and robot:
+        return (f"both searches ran out of budget (the abstract model's at {where(abstract)}, "
+                f"the robot's at {where(robot)})")
+    if abstract:
+        return (f"the abstract model's search ran out of budget ({where(abstract)}); the robot's is complete "
+                "(compare = false in [robot] skips the abstract search)")
+    return f"the robot's search ran out of budget ({where(robot)})"
 
 
 def _unseen_outcomes(ares: JobResult, v: Verdict, model, seen: dict) -> list[str]:

@@ -391,6 +391,15 @@ def test_a_budget_gives_incomplete_never_holds():
     assert {v.status for v in res.verdicts.values()} == {"incomplete"}
 
 
+def test_a_comparison_cut_short_says_which_search_ran_out():
+    job = _job(DATA / "pair.job.toml", compare=True)
+    job.budget.max_states = 50
+    res = run_job(job)
+    rows = {p: why for p, a, r, why in res.robot.comparison}
+    assert rows and all(why.startswith("no comparison: both searches ran out of budget (the abstract model's at ")
+                        and "state budget of 50 reached" in why for why in rows.values()), rows
+
+
 def test_check_prints_the_abstraction_and_the_comparison(roar_cli):
     code, out, err = roar_cli("check", DATA / "pair.job.toml", "--no-traces", "--json")
     assert code == 0, out + err
