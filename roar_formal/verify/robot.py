@@ -302,14 +302,15 @@ def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
 def _out_of_budget(abstract, robot) -> str:
     """Which of the two searches (their graphs, False if complete) ran out of budget, and where."""
     def where(g) -> str:
-        return f"{g.n_states:,} states" + (f"; {g.stop_reason}" if g.stop_reason else "")
+        why = g.stop_reason
+        return f"{g.n_states:,} states" + (f", the {why}" if why and not why.startswith("state budget") else "")
     if abstract and robot:
-        return (f"both searches ran out of budget (the abstract model's at {where(abstract)}, "
-                f"the robot's at {where(robot)})")
+        return (f"both searches ran out of budget (the abstract model's after {where(abstract)}, "
+                f"the robot's after {where(robot)})")
     if abstract:
-        return (f"the abstract model's search ran out of budget ({where(abstract)}); the robot's is complete "
+        return (f"the abstract model's search ran out of budget after {where(abstract)}; the robot's is complete "
                 "(compare = false in [robot] skips the abstract search)")
-    return f"the robot's search ran out of budget ({where(robot)})"
+    return f"the robot's search ran out of budget after {where(robot)}"
 
 
 def _unseen_outcomes(ares: JobResult, v: Verdict, model, seen: dict) -> list[str]:
