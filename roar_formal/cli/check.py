@@ -307,20 +307,34 @@ def _budget_hint(short: list) -> str:
     """What to do about the searches of ``short`` (job results with a verdict left open) that ran
     out of budget: the bounds that ran out, by their options, and the modes for a model too large
     to exhaust."""
-    if all(x.job.search == "swarm" for x in short):   # its members stopped at their own bound
+    from ..verify.jobs import cycle_properties
+    reasons = {x.graph.stop_reason for x in short}
+    if all(x.job.search == "swarm" and x.graph.stop_reason.startswith("swarm:") for x in short):
+        # its members stopped at their own bound
         return ("no randomized search found a violation of these, nor covered the state space; more or longer ones may "
                 "([swarm] runs and max_states in the job file)")
-    reasons = {x.graph.stop_reason for x in short}
+    if all(x.job.search == "swarm" for x in short):   # a bound of the job ended the swarm early
+        opts = [opt for word, opt in (("state budget", "--max-states"), ("time budget", "--max-seconds"),
+                                      ("memory budget", "--max-memory")) if any(word in x for x in reasons)]
+        return (f"the job's budget ended the randomized searches early; raise it ({', '.join(opts) or '--max-seconds'}, "
+                "or a job's [bounds]) to let every search of [swarm] run")
     opts = [opt for word, opt in (("state budget", "--max-states"), ("time budget", "--max-seconds"),
                                   ("memory budget", "--max-memory")) if any(word in x for x in reasons)]
     opts = opts or ["--max-states", "--max-seconds", "--max-memory"]
-    return (f"a budget ran out before a verdict; raise it ({', '.join(opts)}, or a job's [bounds]); "
-            "for a model too large to exhaust, a job file's visited = \"hash\" or \"bitstate\" (less memory "
-            "a state), or search = \"swarm\" (bug hunting) (docs/checking.md, Memory)")
+    out = f"a budget ran out before a verdict; raise it ({', '.join(opts)}, or a job's [bounds]); "
+    if any("memory budget" in x for x in reasons):
+        # hash compaction and bitstate save memory, not time; bitstate decides no property read on cycles
+        modes = ("visited = \"hash\"" if any(cycle_properties(x.job) for x in short) else
+                 "visited = \"hash\" or \"bitstate\"")
+        return (out + f"for a model too large to exhaust, a job file's {modes} (less memory a state, not "
+                "verified), or search = \"swarm\" (bug hunting) (docs/checking.md, Choosing a search mode)")
+    return (out + "for a model too large to exhaust in time, a job file's search = \"swarm\" (bug hunting: it "
+            "finds violations sooner, it never verifies) (docs/checking.md, Choosing a search mode)")
 
 
 def _summary(console: Console, results) -> None:
     from ..testing.api import STATUS_STYLE
+    from ..verify.searching import TOO_SMALL
     t = Table(title="verification summary")
     t.add_column("job")
     props = sorted({p for r in results for p in r.verdicts})
@@ -340,8 +354,10 @@ def _summary(console: Console, results) -> None:
                 mark = "" if want is None or want == v.status else f" (want {want})"
                 # a "holds" of hash compaction or bitstate is a bug-hunting result, not a proof
                 mode = v.details.get("visited") if v.status == "holds" else None
+                small = mode == "bitstate" and v.details.get("omission_probability", 0) > TOO_SMALL
                 cells.append(Text.assemble((v.status, STATUS_STYLE[v.status]),
-                                           (f" ({mode}, not verified)", "yellow") if mode else "", mark))
+                                           (f" ({mode}, {'bit array too small' if small else 'not verified'})",
+                                            "yellow") if mode else "", mark))
         unproved = any(v.status == "holds" and v.details.get("visited") for v in r.verdicts.values())
         t.add_row(r.name, *cells, f"{r.states:,}", f"{r.seconds:.2f} s",
                   Text("as expected" + (", not verified" if unproved else ""),

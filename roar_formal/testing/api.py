@@ -1140,12 +1140,16 @@ class Exploration:
         from ..verify.report import counterexample_report
         r = self.result
         out = {"job": r.job.name, "file": str(r.job.path),
-               "model": str(r.job.model if not r.job.is_roar else r.job.spec), "ok": r.ok,
+               "model": str(r.job.model if not r.job.is_roar else r.job.spec),
+               # as the text's first word: "ok" only when every verdict is there and as expected
+               "ok": r.ok and not self.incomplete,
+               "result": "unexpected" if not r.ok else "incomplete" if self.incomplete else "ok",
                "backend": r.backend, "reduction": getattr(r, "reduction", "off"), "states": r.graph.n_states,
                "transitions": r.graph.n_edges + r.graph.n_unrecorded, "complete": bool(r.graph.complete),
                "incomplete": list(self.incomplete),
                # every "holds" a proof: an exact visited set, every reachable state explored
-               "exhaustive": bool(r.graph.complete) and r.job.visited == "exact" and r.job.search != "swarm",
+               # (a swarm's graph is complete only when one of its searches covered the whole space)
+               "exhaustive": bool(r.graph.complete) and r.job.visited == "exact",
                "visited": r.job.visited, "seconds": round(r.seconds, 4),
                "memory_mb": round(r.memory_mb, 1), "mismatches": r.mismatches, "verdicts": {}}
         robot = self.robot

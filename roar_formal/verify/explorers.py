@@ -34,7 +34,11 @@ def run_search(job: Job, t0: float, explore, options: Options):
         graph2, verdicts2 = search_rounds(job, t0, ex2, decide2)
         lv2 = verdicts2["livelock"]
         if lv2.status == "holds":
-            lv.message += f"; confirmed without reduction ({graph2.n_states:,} states)"
+            saved = graph2.n_states - graph.n_states
+            lv.message += (f"; confirmed without reduction ({graph2.n_states:,} states"
+                           + (f": the reduction saved {saved:,} states, {100 * saved / graph2.n_states:.0f}%)"
+                              if saved > 0 else ": the reduction saved no state here, and the confirmation "
+                              "doubled the search; leave reduction off for this model)"))
             lv.details["confirmed_states"] = graph2.n_states
         else:
             # keep one graph for every counterexample: the unreduced one

@@ -796,12 +796,18 @@ def symmetry_refusals(job: Job) -> None:
             raise RoarError(f"{opt} is not available with {why}", where)
 
 
+def cycle_properties(job: Job) -> list[str]:
+    """The properties of the job read on the cycles of the state graph (fair cycles)."""
+    cycles = [p for p in job.props.check if p in ("livelock", "mission-completion")]
+    return cycles + [n for n, f in job.props.temporal.items()
+                     if n in job.props.check and f.form in ("eventually", "leads-to")]
+
+
 def _bitstate_refusals(job: Job, path: Path) -> None:
     """What a bitstate search cannot decide: it keeps the discovery tree and counts the other
     transitions without their targets, so properties read on cycles or on every step are out."""
     where = Pos(str(path), _line_of(path, "visited"), 1)
-    cycles = [p for p in job.props.check if p in ("livelock", "mission-completion")]
-    cycles += [n for n, f in job.props.temporal.items() if n in job.props.check and f.form in ("eventually", "leads-to")]
+    cycles = cycle_properties(job)
     if cycles:
         extra = " (a default property of a spec: name the properties to check, e.g. [expect] deadlock)" \
             if job.props.defaulted else ""

@@ -44,13 +44,18 @@ def hashed_note(explorer, verdicts: dict) -> None:
             v.message += " [hash compaction: replay the trace to confirm it]"
 
 
+#: past this probability of omission a bit array is too small for the model: most of its states
+#: may be unexplored (the verdict says so, and the summary table too)
+TOO_SMALL = 1e-2
+
+
 def bitstate_note(explorer, verdicts: dict) -> None:
     g = explorer.graph
     p, lost = explorer.omission_probability(), explorer.expected_omissions()
     what = (f"{g.n_states:,} states in {explorer.bits:,} bits, 3 bits each: at the end a new state was taken "
             f"for a visited one with probability {p:.1e}; about {_about(lost)} states were so taken, and their "
             f"successors may be missed too")
-    if p > 1e-2:   # the array is too small: most of the state space may be unexplored
+    if p > TOO_SMALL:   # the array is too small: most of the state space may be unexplored
         need = _bits_for(g.n_states)
         what += (f"; the bit array is too small for this model: give [bitstate] bits at least {need:,} "
                  f"(more, as the states it missed are found)")
@@ -116,15 +121,24 @@ def swarm(job: Job, t0: float, explore, options: Options):
     properties not found violated are "incomplete", with what the swarm covered."""
     total = 0
     last = None
+    cap = job.budget.max_states   # the job's bounds hold for the swarm as a whole
+    stop = ""   # the job's bound that ended the swarm before its last search, if one did
     for i in range(job.swarm_runs):
+        per_run = job.swarm_states
+        if cap is not None:
+            if total >= cap and last is not None:
+                stop = f"state budget of {cap:,} reached"
+                break
+            per_run = min(per_run, max(1, cap - total))
         remaining = None
         if job.budget.max_seconds is not None:
             remaining = job.budget.max_seconds - (time.perf_counter() - t0)
             if remaining <= 0 and last is not None:
+                stop = f"time budget of {job.budget.max_seconds:g} s reached"
                 break
         explorer, decide = explore(options)
         explorer.shuffle(i)
-        graph = explorer.run(Budget(max_states=job.swarm_states, max_seconds=remaining,
+        graph = explorer.run(Budget(max_states=per_run, max_seconds=remaining,
                                     max_memory_mb=job.budget.max_memory_mb))
         stated_time(job, graph)
         verdicts = decide(graph)
@@ -141,14 +155,28 @@ def swarm(job: Job, t0: float, explore, options: Options):
                     v.message += (f" [swarm: found by randomized depth-first search {i + 1} of {job.swarm_runs}; "
                                   f"a real counterexample, not the shortest]")
             break
+        if "time budget" in graph.stop_reason or "memory budget" in graph.stop_reason:
+            stop = graph.stop_reason   # the job's own bound: the searches after it would not run
+            break
+        if cap is not None and total >= cap and i + 1 < job.swarm_runs:
+            stop = f"state budget of {cap:,} reached"
+            break
     explorer, graph, verdicts, done = last
+    # what ended the swarm, for the budget hint: a bound of the job (raise it), or every search
+    # stopped at its own bound ([swarm] runs and max_states)
+    graph.stop_reason = stop or "swarm: every search stopped at its own bound"
+    runs = (f"{done} randomized depth-first search{'es' if done != 1 else ''}" if not stop else
+            f"{done} of {job.swarm_runs} randomized depth-first searches")
     for p, v in verdicts.items():
         if not v.violated:
             verdicts[p] = Verdict(p, "incomplete",
-                                  f"no violation found by {done} randomized depth-first search"
-                                  f"{'es' if done != 1 else ''} ({total:,} states visited in all, at most "
-                                  f"{job.swarm_states:,} each): a bug-hunting result, not verified",
-                                  v.counterexample, {**v.details, "swarm_runs": done, "swarm_states": total})
+                                  f"no violation found by {runs} ({total:,} states visited in all, at most "
+                                  f"{job.swarm_states:,} each"
+                                  + ((f"; {job.swarm_runs - done} did not run: the {stop}" if done < job.swarm_runs
+                                      else f"; the {stop}") if stop else "")
+                                  + "): a bug-hunting result, not verified",
+                                  v.counterexample, {**v.details, "swarm_runs": done, "swarm_states": total,
+                                                     **({"swarm_stop": stop} if stop else {})})
     return explorer, graph, verdicts
 
 

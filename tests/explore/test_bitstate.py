@@ -101,7 +101,15 @@ deadlock = "holds"
     assert "the bit array is too small for this model: give [bitstate] bits at least" in v["message"]
     code, out, _ = roar_cli("check", path, "--no-traces")
     table = out[out.index("verification summary"):]
-    assert code == 0 and "(bitstate, not verified)" in table and "as expected, not verified" in table
+    assert code == 0 and "(bitstate, bit array too small)" in table and "as expected, not verified" in table
+
+
+def test_a_holds_from_a_large_enough_array_reads_not_verified(tmp_path, roar_cli):
+    path = _job(tmp_path, 'name = "bs"\nmodel = "ROOT/models/philosophers/ok.clf"\nvisited = "bitstate"\n'
+                          '[expect]\ndeadlock = "holds"\n')
+    code, out, _ = roar_cli("check", path, "--no-traces")
+    table = out[out.index("verification summary"):]
+    assert code == 0 and "(bitstate, not verified)" in table and "too small" not in out
 
 
 def test_an_exact_complete_search_is_exhaustive_in_json(tmp_path, roar_cli):

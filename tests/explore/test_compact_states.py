@@ -4,6 +4,7 @@ against the plain search it replaces: the same graph, edge for edge."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -253,3 +254,65 @@ def test_an_open_swarm_verdict_hints_at_more_or_longer_searches(tmp_path, capsys
     assert code in (1, 4)
     assert "more or longer ones may ([swarm] runs and max_states in the job file)" in out
     assert "--max-states" not in out.split("incomplete: ")[-1]
+
+
+def test_the_jobs_state_bound_holds_for_a_swarm_as_a_whole(tmp_path, capsys, monkeypatch):
+    """--max-states (like [bounds] max_states) bounds the swarm's searches together: the verdict
+    says how many ran and which bound stopped them, and the hint names that bound."""
+    from roar_formal.cli import main
+    monkeypatch.setenv("COLUMNS", "250")
+    job = _job(tmp_path, "conflict.toml", 'search = "swarm"\nvisited = "hash"\n[swarm]\nruns = 4\nmax_states = 60\n')
+    loaded = load_job(job)
+    loaded.budget.max_states = 100
+    res = with_big_stack(lambda: run_job(loaded))
+    v = res.verdicts["deadlock"]
+    assert v.status == "incomplete" and v.message.startswith("no violation found by 2 of 4 randomized"), v.message
+    assert "; 2 did not run: the state budget of 100 reached)" in v.message
+    assert v.details["swarm_states"] <= 100 + 10
+    try:
+        with_big_stack(lambda: main(["check", str(job), "--no-traces", "--max-states", "100"]))
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr().out
+    assert code in (1, 4)
+    last = out.split("incomplete: ")[-1]
+    assert "the job's budget ended the randomized searches early; raise it (--max-states" in last
+
+
+def test_a_swarm_that_covers_everything_is_exhaustive_in_json(tmp_path, roar_cli):
+    job = _job(tmp_path, "mutual_make_fixed.toml", 'search = "swarm"\n[swarm]\nruns = 3\n')
+    code, out, _ = roar_cli("check", job, "--json", "--no-traces")
+    doc = json.loads(out)
+    assert code == 0 and doc[0]["complete"] and doc[0]["exhaustive"] is True and doc[0]["result"] == "ok"
+
+
+def test_json_ok_is_false_when_a_verdict_is_missing(tmp_path, roar_cli):
+    """A job that expects nothing and runs out of budget is not "ok" in JSON either (exit 4)."""
+    job = tmp_path / "j.toml"
+    job.write_text(f'model = "{ROOT}/models/philosophers/ok.clf"\nproperties = ["{ROOT}/properties/philosophers.toml"]\n'
+                   '[bounds]\nmax_states = 5\n', encoding="utf-8")
+    code, out, _ = roar_cli("check", job, "--json", "--no-traces")
+    doc = json.loads(out)
+    assert code == 4 and doc[0]["ok"] is False and doc[0]["result"] == "incomplete" and doc[0]["incomplete"]
+
+
+def _short(reason: str, check=("deadlock",)):
+    from types import SimpleNamespace
+    from roar_formal.verify.jobs import PropertySpec
+    props = PropertySpec()
+    props.check = list(check)
+    return SimpleNamespace(graph=SimpleNamespace(stop_reason=reason), job=SimpleNamespace(search="bfs", props=props))
+
+
+@pytest.mark.parametrize("reason,check,has,lacks", [
+    ("time budget of 5 s reached", ("deadlock",), ["--max-seconds", 'search = \"swarm\"'], ["hash", "bitstate"]),
+    ("state budget of 9 reached", ("deadlock",), ["--max-states", "swarm"], ["hash", "bitstate"]),
+    ("memory budget of 300 MiB reached", ("deadlock",), ["--max-memory", '"hash\" or \"bitstate\"'], []),
+    ("memory budget of 300 MiB reached", ("deadlock", "livelock"), ['visited = \"hash\"'], ["bitstate"]),
+])
+def test_the_budget_hint_offers_only_modes_that_help(reason, check, has, lacks):
+    """Hash compaction and bitstate save memory, not time; bitstate decides no property read on
+    cycles: the hint offers them only when memory ran out, and bitstate only when it can decide."""
+    from roar_formal.cli.check import _budget_hint
+    hint = _budget_hint([_short(reason, check)])
+    assert all(h in hint for h in has) and not any(x in hint for x in lacks), hint

@@ -48,7 +48,9 @@ def test_no_violation_but_no_verdict_has_its_own_exit_code(capsys, tmp_path, mon
     assert code == 4
     assert "incomplete" in out and "a budget ran out before a verdict" in out
     # the hint names the bound that ran out, and the modes for a model too large to exhaust
-    assert "raise it (--max-states, or a job's [bounds])" in out and 'visited = "hash"' in out
+    # (a state or time bound: hash compaction and bitstate save memory, not time, so not them)
+    assert "raise it (--max-states, or a job's [bounds])" in out and 'search = "swarm"' in out
+    assert 'visited = "hash"' not in out
 
 
 def test_a_budget_hint_is_given_when_an_expected_verdict_is_left_open(capsys, tmp_path, monkeypatch):
