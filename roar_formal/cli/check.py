@@ -44,6 +44,12 @@ def register(app: typer.Typer) -> None:
         symmetry: bool = typer.Option(False, "--symmetry", help="Symmetry reduction: one state per set of states "
                                       "that differ only by exchanging interchangeable agents (or constants), when "
                                       "the model has verified symmetries (docs/checking.md, Symmetry reduction)."),
+        search: Optional[str] = typer.Option(
+            None, "--search", help="Overrides every job's search: bfs (default), dfs, or swarm (randomized "
+            "depth-first searches for bugs, never a proof; docs/checking.md, Choosing a search mode)."),
+        visited: Optional[str] = typer.Option(
+            None, "--visited", help="Overrides every job's visited set: exact (default), hash or bitstate (less "
+            "memory a state, a 'holds' not verified)."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the facts each step consumed and produced."),
         traces: Path = typer.Option(Path("roar-traces"), "--traces",
@@ -91,6 +97,10 @@ def register(app: typer.Typer) -> None:
         jobs = load_jobs(paths, request=request, properties=props, time=time, wait_timeout=wait_timeout,
                          functional=functional)
         files = [j.path for j in jobs if not is_model_path(j.path)]
+        if search is not None or visited is not None:   # every job named, refused before anything runs
+            from ..verify.jobs import apply_search_options
+            for job in jobs:
+                apply_search_options(job.job, search, visited)
         if symmetry:   # every job named, as the bounds below (refused before anything runs)
             from ..verify.jobs import symmetry_refusals
             for job in jobs:

@@ -803,25 +803,57 @@ def cycle_properties(job: Job) -> list[str]:
                      if n in job.props.check and f.form in ("eventually", "leads-to")]
 
 
-def _bitstate_refusals(job: Job, path: Path) -> None:
+def _bitstate_refusals(job: Job, path: Optional[Path], cli: bool = False) -> None:
     """What a bitstate search cannot decide: it keeps the discovery tree and counts the other
-    transitions without their targets, so properties read on cycles or on every step are out."""
-    where = Pos(str(path), _line_of(path, "visited"), 1)
+    transitions without their targets, so properties read on cycles or on every step are out.
+    ``cli``: asked for by --visited (the errors name the options, not a job file's lines)."""
+    where = None if cli or path is None else Pos(str(path), _line_of(path, "visited"), 1)
+    mode, hash_mode = ("--visited bitstate", "--visited hash") if cli else ('visited = "bitstate"', 'visited = "hash"')
     cycles = cycle_properties(job)
     if cycles:
-        extra = " (a default property of a spec: name the properties to check, e.g. [expect] deadlock)" \
+        extra = ((" (a default property of a spec: name the properties to check, e.g. --property "
+                  "deadlock,mission-failure)") if cli else
+                 " (a default property of a spec: name the properties to check, e.g. [expect] deadlock)") \
             if job.props.defaulted else ""
-        raise RoarError(f"visited = \"bitstate\" decides properties read on states; {', '.join(cycles)} "
+        raise RoarError(f"{mode} decides properties read on states; {', '.join(cycles)} "
                         f"need{'s' if len(cycles) == 1 else ''} the cycles of the graph, which a bitstate search "
-                        f"does not record{extra}: use visited = \"hash\"", where)
+                        f"does not record{extra}: use {hash_mode}", where)
     if any(f.events for f in job.props.spec_never):
-        raise RoarError("visited = \"bitstate\" does not record every step, so invariants over events "
-                        "(primitive ... starts, constraint sent to ...) cannot be checked: use visited = \"hash\"",
+        raise RoarError(f"{mode} does not record every step, so invariants over events "
+                        f"(primitive ... starts, constraint sent to ...) cannot be checked: use {hash_mode}",
                         where)
     for bad, why in ((job.reduction, "partial-order reduction (its cycle proviso reads the visited set)"),
                      (job.search in ("swarm", "distributed"), f"search = \"{job.search}\"")):
         if bad:
-            raise RoarError(f"visited = \"bitstate\" is not available with {why}", where)
+            raise RoarError(f"{mode} is not available with {why}", where)
+
+
+def apply_search_options(job: Job, search: Optional[str], visited: Optional[str]) -> None:
+    """``check --search`` / ``--visited``: a job's search and visited set from the command line
+    (every job named), refused as a job file's would be, the errors naming the options."""
+    if search is not None:
+        if search not in ("bfs", "dfs", "swarm"):
+            raise RoarError(f"--search {search}: expected bfs, dfs or swarm (a distributed search needs a job file "
+                            "with search = \"distributed\" and its [cluster] table)")
+        if search == "swarm" and job.robot is not None:
+            raise RoarError(f"--search swarm: {job.name} is robot-backed, and a swarm is not available for "
+                            "robot-backed jobs")
+        if search in ("bfs", "dfs"):
+            job.cluster = None   # a job file's cluster served its distributed search or its swarm
+        job.search = search
+    if visited is not None:
+        if visited not in ("exact", "hash", "bitstate"):
+            raise RoarError(f"--visited {visited}: expected exact, hash or bitstate")
+        if visited != "exact":
+            if job.backend == "ground":
+                raise RoarError(f"--visited {visited}: {job.name} asks for the ground backend, which keeps its "
+                                "states compact and exact already")
+            if job.robot is not None:
+                raise RoarError(f"--visited {visited}: {job.name} is robot-backed (its states pair a model state "
+                                "with the robot's)")
+        job.visited = visited
+    if job.visited == "bitstate" and (visited is not None or search is not None):
+        _bitstate_refusals(job, None, cli=True)
 
 
 #: a scheduler address: scheme://host:port

@@ -316,3 +316,29 @@ def test_the_budget_hint_offers_only_modes_that_help(reason, check, has, lacks):
     from roar_formal.cli.check import _budget_hint
     hint = _budget_hint([_short(reason, check)])
     assert all(h in hint for h in has) and not any(x in hint for x in lacks), hint
+
+
+def test_search_and_visited_from_the_command_line(roar_cli):
+    """--search and --visited override every job's, as a job file's keys would: same states and
+    verdicts as the exact search when a swarm's search covers everything, labelled not verified."""
+    exact = with_big_stack(lambda: run_job(load_job(ROOT / "checker" / "conflict.toml")))
+    code, out, _ = roar_cli("check", ROOT / "checker" / "conflict.toml", "--search", "swarm", "--visited", "hash",
+                            "--json", "--no-traces")
+    doc = json.loads(out)[0]
+    assert code == 0 and doc["visited"] == "hash" and doc["states"] == exact.graph.n_states
+    assert {p: v["status"] for p, v in doc["verdicts"].items()} == {p: v.status for p, v in exact.verdicts.items()}
+    assert doc["exhaustive"] is False and "covered the whole state space" in doc["verdicts"]["deadlock"]["message"]
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--search", "bogus"], "--search bogus: expected bfs, dfs or swarm"),
+    (["--visited", "bits"], "--visited bits: expected exact, hash or bitstate"),
+    # a spec's default properties include mission completion, read on cycles
+    (["--visited", "bitstate"], "--visited bitstate decides properties read on states; mission-completion needs "
+                                "the cycles of the graph"),
+    (["--visited", "bitstate", "--search", "swarm", "-p", "deadlock"],
+     '--visited bitstate is not available with search = "swarm"'),
+])
+def test_bad_search_options_are_refused_before_anything_runs(roar_cli, args, message):
+    code, out, err = roar_cli("check", ROOT / "models" / "conflict.roar", "-r", "mission::done == true", *args)
+    assert code == 2 and message in err and "Traceback" not in err, err
