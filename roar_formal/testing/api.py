@@ -1178,7 +1178,10 @@ class Exploration:
         return out
 
     def _stats(self) -> str:
-        return (f"({self.states:,} states, {self.transitions:,} transitions, {self.seconds:.2f} s, "
+        # a swarm that found nothing: its statistics are its last search's; the verdicts say the total
+        total = max((v.details.get("swarm_states", 0) for v in self.verdicts.values()), default=0)
+        last = " in the last search" if total > self.states else ""
+        return (f"({self.states:,} states{last}, {self.transitions:,} transitions, {self.seconds:.2f} s, "
                 f"backend {self.backend})")
 
     def verdict_lines(self, verbose: bool = False, unexpected: bool = True) -> Lines:

@@ -277,6 +277,7 @@ def test_the_jobs_state_bound_holds_for_a_swarm_as_a_whole(tmp_path, capsys, mon
     assert code in (1, 4)
     last = out.split("incomplete: ")[-1]
     assert "the job's budget ended the randomized searches early; raise it (--max-states" in last
+    assert " states in the last search, " in out   # the header: the verdicts say the total
 
 
 def test_a_swarm_that_covers_everything_is_exhaustive_in_json(tmp_path, roar_cli):
