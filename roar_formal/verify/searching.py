@@ -158,7 +158,7 @@ def swarm(job: Job, t0: float, explore, options: Options):
         if "time budget" in graph.stop_reason or "memory budget" in graph.stop_reason:
             stop = graph.stop_reason   # the job's own bound: the searches after it would not run
             break
-        if cap is not None and total >= cap and i + 1 < job.swarm_runs:
+        if cap is not None and total >= cap and (i + 1 < job.swarm_runs or per_run < job.swarm_states):
             stop = f"state budget of {cap:,} reached"
             break
     explorer, graph, verdicts, done = last

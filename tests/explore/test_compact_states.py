@@ -343,3 +343,12 @@ def test_search_and_visited_from_the_command_line(roar_cli):
 def test_bad_search_options_are_refused_before_anything_runs(roar_cli, args, message):
     code, out, err = roar_cli("check", ROOT / "models" / "conflict.roar", "-r", "mission::done == true", *args)
     assert code == 2 and message in err and "Traceback" not in err, err
+
+
+def test_a_one_search_swarm_cut_by_the_jobs_state_bound_names_it(tmp_path):
+    job = load_job(_job(tmp_path, "conflict.toml", 'search = "swarm"\nvisited = "hash"\n[swarm]\nruns = 1\nmax_states = 500\n'))
+    job.budget.max_states = 50
+    res = with_big_stack(lambda: run_job(job))
+    v = res.verdicts["deadlock"]
+    assert v.status == "incomplete" and "; the state budget of 50 reached)" in v.message, v.message
+    assert res.graph.stop_reason == "state budget of 50 reached"
