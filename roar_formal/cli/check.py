@@ -323,13 +323,11 @@ def _budget_hint(short: list) -> str:
         # its members stopped at their own bound
         return ("no randomized search found a violation of these, nor covered the state space; more or longer ones may "
                 "([swarm] runs and max_states in the job file)")
-    if all(x.job.search == "swarm" for x in short):   # a bound of the job ended the swarm early
-        opts = [opt for word, opt in (("state budget", "--max-states"), ("time budget", "--max-seconds"),
-                                      ("memory budget", "--max-memory")) if any(word in x for x in reasons)]
-        return (f"the job's budget ended the randomized searches early; raise it ({', '.join(opts) or '--max-seconds'}, "
-                "or a job's [bounds]) to let every search of [swarm] run")
     opts = [opt for word, opt in (("state budget", "--max-states"), ("time budget", "--max-seconds"),
                                   ("memory budget", "--max-memory")) if any(word in x for x in reasons)]
+    if all(x.job.search == "swarm" for x in short):   # a bound of the job ended the swarm early
+        return (f"the job's budget ended the randomized searches early; raise it ({', '.join(opts) or '--max-seconds'}, "
+                "or a job's [bounds]) to let every search of [swarm] run")
     opts = opts or ["--max-states", "--max-seconds", "--max-memory"]
     out = f"a budget ran out before a verdict; raise it ({', '.join(opts)}, or a job's [bounds]); "
     if any("memory budget" in x for x in reasons):

@@ -123,11 +123,12 @@ def swarm(job: Job, t0: float, explore, options: Options):
     last = None
     cap = job.budget.max_states   # the job's bounds hold for the swarm as a whole
     stop = ""   # the job's bound that ended the swarm before its last search, if one did
+    cap_reached = f"state budget of {cap:,} reached" if cap is not None else ""
     for i in range(job.swarm_runs):
         per_run = job.swarm_states
         if cap is not None:
             if total >= cap and last is not None:
-                stop = f"state budget of {cap:,} reached"
+                stop = cap_reached
                 break
             per_run = min(per_run, max(1, cap - total))
         remaining = None
@@ -159,7 +160,7 @@ def swarm(job: Job, t0: float, explore, options: Options):
             stop = graph.stop_reason   # the job's own bound: the searches after it would not run
             break
         if cap is not None and total >= cap and (i + 1 < job.swarm_runs or per_run < job.swarm_states):
-            stop = f"state budget of {cap:,} reached"
+            stop = cap_reached
             break
     explorer, graph, verdicts, done = last
     # what ended the swarm, for the budget hint: a bound of the job (raise it), or every search
