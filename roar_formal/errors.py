@@ -41,6 +41,30 @@ class RoarError(Exception):
         return self.format()
 
 
+class ErrorList(RoarError):
+    """Several problems found in one pass: the first as the message, the others as notes, all
+    in ``errors`` (a user fixes them in one edit rather than one run per error)."""
+
+    def __init__(self, errors: list[RoarError]):
+        self.errors = []
+        for e in errors:   # (a list inside a list: its own errors, in order)
+            self.errors += e.errors if isinstance(e, ErrorList) else [e]
+        first = self.errors[0]
+        more = len(self.errors) - 1
+        msg = first.message + (f" (and {more} more error{'s' if more > 1 else ''})" if more else "")
+        super().__init__(msg, first.pos, notes=first.notes + [e.format() for e in self.errors[1:]])
+
+
+@contextmanager
+def collecting(errors: list) -> Iterator[None]:
+    """Run a block, appending the :class:`RoarError` it raises to ``errors`` instead of
+    stopping (the checks after it that do not depend on it still run)."""
+    try:
+        yield
+    except RoarError as exc:
+        errors.append(exc)
+
+
 class SyntaxError_(RoarError):
     """Malformed input text (named with a trailing underscore to avoid the builtin)."""
 

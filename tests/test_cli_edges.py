@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -140,3 +141,29 @@ def test_replay_on_robot_of_a_counterexample_of_another_spec_says_so(roar_cli, t
                                "--on-robot", ROOT / "models" / "scenarios" / "ptu_cable.toml")
     assert code == 2 and "was recorded on another spec than" in err and "conflict.roar" in err
     assert "has no variable" not in err
+
+
+def test_a_job_file_reports_every_independent_error_at_once(roar_cli, tmp_path):
+    """Unknown keys, bad bounds and bad expected verdicts in different tables are all reported in
+    one run, in the order of the file's lines; a key whose value was refused does not bring a
+    second error about what reads it (a [swarm] table after a refused 'search')."""
+    job = tmp_path / "j.toml"
+    job.write_text(f'spec = "{ROOT / "models" / "conflict.roar"}"\nrequest = "x"\nvisted = "hash"\n'
+                   'search = "breadth"\n[swarm]\nruns = 2\n'
+                   '[bounds]\nmax_states = -5\nmax_secs = 3\n[expect]\nlivelok = "holds"\ndeadlock = "maybe"\n',
+                   encoding="utf-8")
+    code, out, err = roar_cli("check", job)
+    assert code == 2 and "Traceback" not in out + err
+    text = out + err
+    found = [(int(m.group(1)), m.group(2)) for m in re.finditer(rf"{re.escape(str(job))}:(\d+):\d+: ([^\n]*)", text)]
+    lines = [n for n, _ in found]
+    assert lines == [3, 4, 8, 9, 11, 12], text
+    assert "unknown key 'visted'" in found[0][1] and "(and 5 more errors)" in found[0][1]
+    assert "'search' must be one of" in found[1][1]
+    assert "max_states must be" in found[2][1] and "unknown key 'max_secs'" in found[3][1]
+    assert "unknown key 'livelok'" in found[4][1] and "'maybe'" in found[5][1]
+    assert "needs search" not in text   # the [swarm] table is not blamed for the refused search
+    # one error alone reads as before: no count, no notes
+    job.write_text(f'spec = "{ROOT / "models" / "conflict.roar"}"\nrequest = "x"\nvisted = "hash"\n', encoding="utf-8")
+    code, out, err = roar_cli("check", job)
+    assert code == 2 and "more error" not in out + err and f"{job}:3:1: unknown key 'visted'" in out + err

@@ -28,7 +28,7 @@ import difflib
 from dataclasses import dataclass, field
 from typing import Optional, Union
 
-from ..errors import Pos, TypeError_
+from ..errors import ErrorList, Pos, TypeError_
 from . import ast as a
 from .parser import parse_constraint
 from .pretty import format_expr
@@ -50,17 +50,11 @@ class CheckError(TypeError_):
         self.code = code
 
 
-class SpecCheckError(TypeError_):
+class SpecCheckError(ErrorList, TypeError_):
     """Every problem of a spec: the first as the message, the others as notes; all in ``errors``."""
 
     def __init__(self, errors: list[CheckError]):
-        self.errors = list(errors)
-        first = self.errors[0]
-        more = len(self.errors) - 1
-        msg = first.message
-        if more:
-            msg += f" (and {more} more error{'s' if more > 1 else ''})"
-        super().__init__(msg, first.pos, notes=[e.format() for e in self.errors[1:]])
+        super().__init__(errors)
 
 
 def _key(e: CheckError):

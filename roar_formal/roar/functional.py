@@ -32,7 +32,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Optional
 
-from ..errors import Pos, RoarError
+from ..errors import ErrorList, Pos, RoarError
 from . import ast as a
 
 __all__ = ["Outcome", "Primitive", "Registry", "Binding", "BindingError", "SUCCESS", "FAILURE",
@@ -94,15 +94,8 @@ class Primitive:
         raise KeyError(f"primitive '{self.name}' has no outcome '{name}'")
 
 
-class BindingError(RoarError):
+class BindingError(ErrorList):
     """Problems binding a spec to a registry: the first as message, the others as notes; all in ``errors``."""
-
-    def __init__(self, errors: list[RoarError]):
-        self.errors = list(errors)
-        first = self.errors[0]
-        more = len(self.errors) - 1
-        msg = first.message + (f" (and {more} more error{'s' if more > 1 else ''})" if more else "")
-        super().__init__(msg, first.pos, notes=[e.format() for e in self.errors[1:]])
 
 
 @dataclass(frozen=True)

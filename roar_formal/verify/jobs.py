@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
-from ..errors import Pos, RoarError
+from ..errors import ErrorList, Pos, RoarError, collecting
 from ..explore.search import Budget
 
 PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant",
@@ -574,130 +574,168 @@ def _named_file(base: Path, name: str, job: Path, key: str, what: str) -> Path:
     return p
 
 
+def _in_order(errors: list[RoarError], path: Path) -> RoarError:
+    """The errors found in a job file as one, the job file's first in the order of its lines."""
+    flat = ErrorList(errors).errors
+    flat.sort(key=lambda e: (e.pos is None or e.pos.file != str(path), e.pos.file if e.pos else "",
+                             e.pos.line if e.pos else 0, e.pos.col if e.pos else 0))
+    return flat[0] if len(flat) == 1 else ErrorList(flat)
+
+
 def load_job(path: str | Path) -> Job:
+    """A job file read and checked. The checks of its keys and tables that do not depend on each
+    other all run, and their errors are reported together (:class:`ErrorList`); the checks that
+    combine them run once those pass."""
     path = Path(path)
     d = _load_toml(path)
-    _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
-                     "canonical", "reduction", "visited", "swarm", "bitstate", "bounds", "expect", "robot", "faults",
-                     "time", "symmetry",
-                     "cluster"},
-                 "a job file", path)
+    errs: list[RoarError] = []
+    with collecting(errs):
+        _expect_keys(d, {"name", "model", "spec", "request", "functional", "start", "properties", "backend", "search",
+                         "canonical", "reduction", "visited", "swarm", "bitstate", "bounds", "expect", "robot", "faults",
+                         "time", "symmetry",
+                         "cluster"},
+                     "a job file", path)
     base = path.parent
-    if "spec" in d:
-        if "model" in d:
-            raise RoarError("a job names either 'model' (a .clf program) or 'spec' (a ROAR spec), not both",
-                            Pos(str(path), _line_of(path, "model"), 1))
-        if "request" not in d:
-            raise RoarError("a job on a spec needs 'request = \"agent::var == value ...\"'",
-                            Pos(str(path), _line_of(path, "spec"), 1))
-        spec = _named_file(base, _typed(d, "spec", str, path, "a job file"), path, "spec", "spec")
-        job = Job(path=path, name=str(d.get("name", path.stem)), model=None, spec=spec,
-                  request=_typed(d, "request", str, path, "a job file"))
-        job.request_at = _string_pos(path, "request", job.request)
-        if "functional" in d:
-            job.functional = _named_file(base, _typed(d, "functional", str, path, "a job file"), path, "functional",
-                                         "functional-layer module")
-        if "robot" in d:
-            job.robot = _robot_setup(d, path, base)
-        if "faults" in d:
-            job.crashes = _faults_setup(d, path)
-            if job.crashes and job.robot is not None:
-                raise RoarError("[faults] crash is for a job on the model; on the robot, faults are the "
-                                "scenario's fault points ([robot] faults)", Pos(str(path), _line_of(path, "faults"), 1))
-        if "time" in d:
-            job.time = _time_setup(d, path)
-            if job.time and job.robot is not None:
-                raise RoarError("the timed mode is for a job on the model; on the robot, time is the robot's "
-                                "simulated time", job.time.where[0])
-    else:
-        if "robot" in d:
-            raise RoarError("'robot' belongs to a job on a spec ('spec = ...'): the robot is the functional layer "
-                            "a spec calls", Pos(str(path), _line_of(path, "robot"), 1))
-        if "model" not in d:
-            raise RoarError("a job needs 'model = \"path/to/model.clf\"' or 'spec = \"path/to/spec.roar\"' "
-                            "with a 'request'", Pos(str(path), 1, 1))
-        for k in ("request", "functional", "faults", "time"):
-            if k in d:
-                raise RoarError(f"'{k}' belongs to a job on a spec ('spec = ...'), not on a .clf model",
-                                Pos(str(path), _line_of(path, k), 1))
-        model = _named_file(base, _typed(d, "model", str, path, "a job file"), path, "model", "model")
-        job = Job(path=path, name=str(d.get("name", path.stem)), model=model)
-    if "start" in d:
-        job.start = _typed(d, "start", int, path, "a job file")
-        job.start_at = Pos(str(path), _line_of(path, "start"), 1)
-        if job.start < 1:
-            raise RoarError("'start' counts #exec directives from 1", Pos(str(path), _line_of(path, "start"), 1))
-    props = d.get("properties", [])
-    if isinstance(props, str):
-        props = [props]
-    if not isinstance(props, list):
-        raise RoarError("'properties' must be a path or a list of paths", Pos(str(path), _line_of(path, "properties"), 1))
-    for p in props:
-        if not isinstance(p, str) or "\0" in p:
-            raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
-                            Pos(str(path), _line_of(path, "properties"), 1))
-        load_properties(_named_file(base, p, path, "properties", "property file"), job.props)
+    job: Optional[Job] = None
+    with collecting(errs):
+        if "spec" in d:
+            if "model" in d:
+                raise RoarError("a job names either 'model' (a .clf program) or 'spec' (a ROAR spec), not both",
+                                Pos(str(path), _line_of(path, "model"), 1))
+            if "request" not in d:
+                raise RoarError("a job on a spec needs 'request = \"agent::var == value ...\"'",
+                                Pos(str(path), _line_of(path, "spec"), 1))
+            spec = _named_file(base, _typed(d, "spec", str, path, "a job file"), path, "spec", "spec")
+            job = Job(path=path, name=str(d.get("name", path.stem)), model=None, spec=spec,
+                      request=_typed(d, "request", str, path, "a job file"))
+            job.request_at = _string_pos(path, "request", job.request)
+            if "functional" in d:
+                job.functional = _named_file(base, _typed(d, "functional", str, path, "a job file"), path, "functional",
+                                             "functional-layer module")
+            if "robot" in d:
+                job.robot = _robot_setup(d, path, base)
+            if "faults" in d:
+                job.crashes = _faults_setup(d, path)
+                if job.crashes and job.robot is not None:
+                    raise RoarError("[faults] crash is for a job on the model; on the robot, faults are the "
+                                    "scenario's fault points ([robot] faults)", Pos(str(path), _line_of(path, "faults"), 1))
+            if "time" in d:
+                job.time = _time_setup(d, path)
+                if job.time and job.robot is not None:
+                    raise RoarError("the timed mode is for a job on the model; on the robot, time is the robot's "
+                                    "simulated time", job.time.where[0])
+        else:
+            if "robot" in d:
+                raise RoarError("'robot' belongs to a job on a spec ('spec = ...'): the robot is the functional layer "
+                                "a spec calls", Pos(str(path), _line_of(path, "robot"), 1))
+            if "model" not in d:
+                raise RoarError("a job needs 'model = \"path/to/model.clf\"' or 'spec = \"path/to/spec.roar\"' "
+                                "with a 'request'", Pos(str(path), 1, 1))
+            for k in ("request", "functional", "faults", "time"):
+                if k in d:
+                    raise RoarError(f"'{k}' belongs to a job on a spec ('spec = ...'), not on a .clf model",
+                                    Pos(str(path), _line_of(path, k), 1))
+            model = _named_file(base, _typed(d, "model", str, path, "a job file"), path, "model", "model")
+            job = Job(path=path, name=str(d.get("name", path.stem)), model=model)
+    if job is None:
+        raise _in_order(errs, path)
+    bad: set[str] = set()   # keys whose values were refused: the checks that read them are skipped
+    with collecting(errs):
+        if "start" in d:
+            job.start = _typed(d, "start", int, path, "a job file")
+            job.start_at = Pos(str(path), _line_of(path, "start"), 1)
+            if job.start < 1:
+                raise RoarError("'start' counts #exec directives from 1", Pos(str(path), _line_of(path, "start"), 1))
+    with collecting(errs):
+        bad.add("properties")
+        props = d.get("properties", [])
+        if isinstance(props, str):
+            props = [props]
+        if not isinstance(props, list):
+            raise RoarError("'properties' must be a path or a list of paths", Pos(str(path), _line_of(path, "properties"), 1))
+        for p in props:
+            if not isinstance(p, str) or "\0" in p:
+                raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
+                                Pos(str(path), _line_of(path, "properties"), 1))
+            load_properties(_named_file(base, p, path, "properties", "property file"), job.props)
+        bad.discard("properties")
     for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs", "swarm", "distributed")),
                          ("visited", ("exact", "hash", "bitstate"))):
-        if key in d:
-            v = _typed(d, key, str, path, "a job file")
-            if v not in allowed:
-                raise RoarError(f"'{key}' must be one of {', '.join(allowed)}, not '{v}'",
-                                Pos(str(path), _line_of(path, key), 1))
-            setattr(job, key, v)
-    if job.backend == "ground" and "spec" in d:
-        raise RoarError("backend = \"ground\" runs plain CLF models (model = FILE.clf) that make no fresh names; "
-                        "a compiled spec makes them (its requests, activations and calls), so a spec job runs on "
-                        "the general backend: drop the line (or write \"auto\")", _value_pos(path, "backend"))
-    if job.visited in ("hash", "bitstate") and job.backend == "ground":
-        raise RoarError(f"visited = \"{job.visited}\" is a mode of the general backend (the ground backend keeps "
-                        "its states compact and exact already): drop one of them",
-                        Pos(str(path), _line_of(path, "visited"), 1))
-    if "bitstate" in d:
-        bt = _typed(d, "bitstate", dict, path, "a job file")
-        _expect_keys(bt, {"bits"}, "[bitstate]", path)
-        if job.visited != "bitstate":
-            raise RoarError("a [bitstate] table needs visited = \"bitstate\"", Pos(str(path), _line_of(path, "bitstate"), 1))
-        if "bits" in bt:
-            v = bt["bits"]
-            if isinstance(v, bool) or not isinstance(v, int) or not 1024 <= v <= 1 << 40:
-                raise RoarError(f"[bitstate] bits is the size of the bit array, a whole number from 1,024 to 2^40, "
-                                f"not {v!r}"[:300], _value_pos(path, "bits"))
-            job.bits = v
-    if "swarm" in d:
-        sw = _typed(d, "swarm", dict, path, "a job file")
-        _expect_keys(sw, {"runs", "max_states"}, "[swarm]", path)
-        if job.search != "swarm":
-            raise RoarError("a [swarm] table needs search = \"swarm\"", Pos(str(path), _line_of(path, "swarm"), 1))
-        for key, attr in (("runs", "swarm_runs"), ("max_states", "swarm_states")):
-            if key in sw:
-                v = sw[key]
-                if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                    raise RoarError(f"[swarm] {key} must be a whole number, at least 1, not {v!r}"[:300],
-                                    _value_pos(path, key))
-                setattr(job, attr, v)
-    if "cluster" in d or job.search == "distributed":
-        job.cluster = _cluster_setup(d, path, job)
-    if "canonical" in d:
-        job.canonical = _typed(d, "canonical", bool, path, "a job file")
-    if "reduction" in d:
-        job.reduction = _typed(d, "reduction", bool, path, "a job file")
-    if "symmetry" in d:
-        v = d["symmetry"]
-        if not isinstance(v, bool):
-            raise RoarError(f"'symmetry' in a job file must be true or false, not {v!r}"[:300],
-                            _value_pos(path, "symmetry"))
-        job.symmetry = v
-        job.symmetry_at = _value_pos(path, "symmetry") if v else None
-    if "bounds" in d:
-        b = _typed(d, "bounds", dict, path, "a job file")
-        _expect_keys(b, set(BOUND_KEYS), "[bounds]", path)
-        job.budget = Budget(
-            max_states=_bound(b, "max_states", path, "a whole number of states, at least 1", 1, integer=True),
-            max_seconds=_bound(b, "max_seconds", path, "a number of seconds above 0", 0, integer=False),
-            max_memory_mb=_bound(b, "max_memory_mb", path, f"a whole number of MiB, at least {MIN_MEMORY_MB}",
-                                 MIN_MEMORY_MB, integer=True),
-        )
+        with collecting(errs):
+            if key in d:
+                bad.add(key)
+                v = _typed(d, key, str, path, "a job file")
+                if v not in allowed:
+                    raise RoarError(f"'{key}' must be one of {', '.join(allowed)}, not '{v}'",
+                                    Pos(str(path), _line_of(path, key), 1))
+                setattr(job, key, v)
+                bad.discard(key)
+    with collecting(errs):
+        if job.backend == "ground" and "spec" in d:
+            raise RoarError("backend = \"ground\" runs plain CLF models (model = FILE.clf) that make no fresh names; "
+                            "a compiled spec makes them (its requests, activations and calls), so a spec job runs on "
+                            "the general backend: drop the line (or write \"auto\")", _value_pos(path, "backend"))
+    with collecting(errs):
+        if job.visited in ("hash", "bitstate") and job.backend == "ground":
+            raise RoarError(f"visited = \"{job.visited}\" is a mode of the general backend (the ground backend keeps "
+                            "its states compact and exact already): drop one of them",
+                            Pos(str(path), _line_of(path, "visited"), 1))
+    with collecting(errs):
+        if "bitstate" in d:
+            bt = _typed(d, "bitstate", dict, path, "a job file")
+            _expect_keys(bt, {"bits"}, "[bitstate]", path)
+            if job.visited != "bitstate" and "visited" not in bad:
+                raise RoarError("a [bitstate] table needs visited = \"bitstate\"", Pos(str(path), _line_of(path, "bitstate"), 1))
+            if "bits" in bt:
+                v = bt["bits"]
+                if isinstance(v, bool) or not isinstance(v, int) or not 1024 <= v <= 1 << 40:
+                    raise RoarError(f"[bitstate] bits is the size of the bit array, a whole number from 1,024 to 2^40, "
+                                    f"not {v!r}"[:300], _value_pos(path, "bits"))
+                job.bits = v
+    with collecting(errs):
+        if "swarm" in d:
+            sw = _typed(d, "swarm", dict, path, "a job file")
+            _expect_keys(sw, {"runs", "max_states"}, "[swarm]", path)
+            if job.search != "swarm" and "search" not in bad:
+                raise RoarError("a [swarm] table needs search = \"swarm\"", Pos(str(path), _line_of(path, "swarm"), 1))
+            for key, attr in (("runs", "swarm_runs"), ("max_states", "swarm_states")):
+                if key in sw:
+                    v = sw[key]
+                    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                        raise RoarError(f"[swarm] {key} must be a whole number, at least 1, not {v!r}"[:300],
+                                        _value_pos(path, key))
+                    setattr(job, attr, v)
+    with collecting(errs):
+        if ("cluster" in d or job.search == "distributed") and "search" not in bad:
+            job.cluster = _cluster_setup(d, path, job)
+    with collecting(errs):
+        if "canonical" in d:
+            job.canonical = _typed(d, "canonical", bool, path, "a job file")
+    with collecting(errs):
+        if "reduction" in d:
+            job.reduction = _typed(d, "reduction", bool, path, "a job file")
+    with collecting(errs):
+        if "symmetry" in d:
+            v = d["symmetry"]
+            if not isinstance(v, bool):
+                raise RoarError(f"'symmetry' in a job file must be true or false, not {v!r}"[:300],
+                                _value_pos(path, "symmetry"))
+            job.symmetry = v
+            job.symmetry_at = _value_pos(path, "symmetry") if v else None
+    with collecting(errs):
+        if "bounds" in d:
+            b = _typed(d, "bounds", dict, path, "a job file")
+            with collecting(errs):
+                _expect_keys(b, set(BOUND_KEYS), "[bounds]", path)
+            got = {}
+            for key, what, least, integer in (
+                    ("max_states", "a whole number of states, at least 1", 1, True),
+                    ("max_seconds", "a number of seconds above 0", 0, False),
+                    ("max_memory_mb", f"a whole number of MiB, at least {MIN_MEMORY_MB}", MIN_MEMORY_MB, True)):
+                with collecting(errs):
+                    got[key] = _bound(b, key, path, what, least, integer=integer)
+            if len(got) == 3:
+                job.budget = Budget(**got)
     from_expect: dict[str, Pos] = {}   # properties only [expect] names -> its line (errors point there)
 
     def at(prop: str, what: str) -> tuple[str, Pos]:
@@ -706,17 +744,23 @@ def load_job(path: str | Path) -> Job:
             return (f"[expect] {prop}: the job's properties do not check it, and [expect] adds it; {what}",
                     from_expect[prop])
         return what, Pos(str(path), 1, 1)
-    if "expect" in d:
-        e = _typed(d, "expect", dict, path, "a job file")
-        _expect_keys(e, set(PROPERTIES) | set(job.props.temporal), "[expect]", path)
-        for k, v in e.items():
-            if v not in STATUSES:
-                raise RoarError(f"expected verdict of '{k}' must be 'holds' or 'violated', not {v!r}",
-                                Pos(str(path), _line_of(path, k), 1))
-            job.expect[k] = v
-            if k not in job.props.check:
-                job.props.check.append(k)
-                from_expect[k] = Pos(str(path), _line_of(path, k), 1)
+    with collecting(errs):
+        if "expect" in d:
+            e = _typed(d, "expect", dict, path, "a job file")
+            if "properties" not in bad:   # (a property file that failed defines no names to expect)
+                with collecting(errs):
+                    _expect_keys(e, set(PROPERTIES) | set(job.props.temporal), "[expect]", path)
+            for k, v in e.items():
+                if v not in STATUSES:
+                    errs.append(RoarError(f"expected verdict of '{k}' must be 'holds' or 'violated', not {v!r}",
+                                          Pos(str(path), _line_of(path, k), 1)))
+                    continue
+                job.expect[k] = v
+                if k not in job.props.check:
+                    job.props.check.append(k)
+                    from_expect[k] = Pos(str(path), _line_of(path, k), 1)
+    if errs:
+        raise _in_order(errs, path)
     if job.is_roar and not job.props.check:   # nothing names a property: the defaults of a spec
         job.props.check = list(SPEC_DEFAULTS)
         job.props.defaulted = True
