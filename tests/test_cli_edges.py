@@ -119,6 +119,11 @@ def test_trial_messages_say_what_was_meant(roar_cli, tmp_path):
     job.write_text(f'name = "x"\nmodel = "{ROOT / "models" / "philosophers" / "ok.clf"}"\nmax_state = 3\n')
     code, _out, err = roar_cli("check", job)
     assert code == 2 and "(did you mean 'max_states'?; the bounds go in a [bounds] table)" in err
+    job.write_text(f'name = "x"\nmodel = "{ROOT / "models" / "philosophers" / "ok.clf"}"\nmax_states = 3\n'
+                   '[expect]\ndeadlock = true\n')
+    code, _out, err = roar_cli("check", job)
+    assert code == 2 and "('max_states' is a bound: it goes in a [bounds] table)" in err and "did you mean" not in err
+    assert "must be 'holds' or 'violated', not true" in err   # the value as TOML writes it, not Python's True
     job.write_text(f'name = "x"\nspec = "{ROOT / "models" / "conflict.roar"}"\nrequest = "mission::done == true"\n'
                    f'[robot]\nscenario = "{ROOT / "models" / "scenarios" / "gripper.toml"}"\nquantize = "exact"\n')
     code, _out, err = roar_cli("check", job)
@@ -161,9 +166,66 @@ def test_a_job_file_reports_every_independent_error_at_once(roar_cli, tmp_path):
     assert "unknown key 'visted'" in found[0][1] and "(and 5 more errors)" in found[0][1]
     assert "'search' must be one of" in found[1][1]
     assert "max_states must be" in found[2][1] and "unknown key 'max_secs'" in found[3][1]
-    assert "unknown key 'livelok'" in found[4][1] and "'maybe'" in found[5][1]
+    assert "unknown key 'livelok'" in found[4][1] and 'not "maybe"' in found[5][1]
     assert "needs search" not in text   # the [swarm] table is not blamed for the refused search
     # one error alone reads as before: no count, no notes
     job.write_text(f'spec = "{ROOT / "models" / "conflict.roar"}"\nrequest = "x"\nvisted = "hash"\n', encoding="utf-8")
     code, out, err = roar_cli("check", job)
     assert code == 2 and "more error" not in out + err and f"{job}:3:1: unknown key 'visted'" in out + err
+
+
+def test_a_property_file_on_the_command_line_checks_as_the_job_naming_it(roar_cli, tmp_path, checker_job):
+    """`check MODEL --properties FILE` checks what FILE names, the way it says (livelock progress
+    rules on a .clf program): the same verdicts and graph as the bundled job naming that file."""
+    code, out, _ = roar_cli("check", ROOT / "models" / "philosophers" / "ll.clf", "--properties",
+                            ROOT / "properties" / "philosophers.toml", "--no-traces", "--json")
+    ref = checker_job("philosophers_ll5.toml")
+    job = json.loads(out)[0]
+    assert code == 1   # a violation the command line did not expect
+    assert job["states"] == ref.graph.n_states and job["transitions"] == ref.graph.n_edges
+    assert {k: v["status"] for k, v in job["verdicts"].items()} == {k: v.status for k, v in ref.verdicts.items()}
+    # --property narrows what the file names; the file still says how (its progress rules)
+    code, out, _ = roar_cli("check", ROOT / "models" / "philosophers" / "ll.clf", "--properties",
+                            ROOT / "properties" / "philosophers.toml", "-p", "livelock", "--no-traces", "--json")
+    assert list(json.loads(out)[0]["verdicts"]) == ["livelock"]
+    assert json.loads(out)[0]["verdicts"]["livelock"]["status"] == "violated"
+
+
+def test_a_spec_checked_with_a_property_file_names_progress_in_its_terms(roar_cli, tmp_path):
+    """The endless camera retry: livelock holds by the default progress (and says what it counted),
+    is violated with the property file's progress (the job's request finishes), as a job file
+    naming the same file finds it."""
+    spec = ROOT / "models" / "faulty" / "camera_retry.roar"
+    req = "camera::taken == true"
+    code, out, _ = roar_cli("check", spec, "-r", req, "-p", "livelock", "--no-traces", "--json")
+    v = json.loads(out)[0]["verdicts"]["livelock"]
+    assert code == 0 and v["status"] == "holds" and "progress: any request of any agent" in v["message"]
+    code, out, _ = roar_cli("check", spec, "-r", req, "--properties", ROOT / "properties" / "roar.toml",
+                            "--no-traces", "--json")
+    direct = json.loads(out)[0]
+    job = tmp_path / "j.toml"
+    job.write_text(f'spec = "{spec}"\nrequest = "{req}"\nproperties = ["{ROOT / "properties" / "roar.toml"}"]\n',
+                   encoding="utf-8")
+    _code, out, _ = roar_cli("check", job, "--no-traces", "--json")
+    viajob = json.loads(out)[0]
+    assert code == 1 and direct["verdicts"]["livelock"]["status"] == "violated"
+    assert {k: v["status"] for k, v in direct["verdicts"].items()} == \
+        {k: v["status"] for k, v in viajob["verdicts"].items()}
+    assert direct["states"] == viajob["states"]
+
+
+def test_property_files_on_the_command_line_are_checked_before_anything_runs(roar_cli, tmp_path):
+    clf = ROOT / "models" / "philosophers" / "ll.clf"
+    code, _, err = roar_cli("check", clf, "--properties", tmp_path / "none.toml")
+    assert code == 2 and "--properties" in err and "no such file" in err
+    terms = tmp_path / "terms.toml"
+    terms.write_text('[invariant]\nnever = ["arm::x == 1"]\n', encoding="utf-8")
+    code, _, err = roar_cli("check", clf, "--properties", terms)
+    assert code == 2 and "written in the spec's terms" in err and f"{terms}:2:" in err
+    code, _, err = roar_cli("check", clf, "-p", "livelock")
+    assert code == 2 and "--properties FILE" in err
+    code, _, err = roar_cli("check", ROOT / "checker" / "conflict.toml", "--properties", terms)
+    assert code == 2 and "--properties" in err and "a job file" in err
+    (tmp_path / "empty").mkdir()
+    code, _, err = roar_cli("check", tmp_path / "empty", "-r", "a::x == 1")
+    assert code == 2 and "no model, spec or job file" in err

@@ -28,6 +28,9 @@ def register(app: typer.Typer) -> None:
                                        "incompatible-tasks, mission-completion, mission-failure); "
                                        "repeatable or comma-separated. Default: deadlock on a .clf program; "
                                        "deadlock, mission-completion and mission-failure on a spec."),
+        prop_files: List[Path] = typer.Option([], "--properties", help="With a model or spec: a property file "
+                                              "(TOML, as a job names) saying what to check and how: livelock "
+                                              "progress, invariants, temporal formulas. Repeatable."),
         time: Optional[str] = typer.Option(None, "--time", help="With a spec: 'untimed' (default) or 'timed' "
                                            "(the periods of wait, assert and ensure on a discrete clock; "
                                            "docs/semantics.md, Time)."),
@@ -51,7 +54,8 @@ def register(app: typer.Typer) -> None:
             None, "--visited", help="Overrides every job's visited set: exact (default), hash or bitstate (less "
             "memory a state, a 'holds' not verified)."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON document for machines."),
-        verbose: bool = typer.Option(False, "--verbose", "-v", help="Show the facts each step consumed and produced."),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="Counterexamples in more detail: on a .clf model the facts each step "
+                                     "consumed and produced; on a spec the CLF rule of each event."),
         traces: Path = typer.Option(Path("roar-traces"), "--traces",
                                     help="Folder where counterexample traces are written."),
         no_traces: bool = typer.Option(False, "--no-traces", help="Do not write counterexample traces."),
@@ -76,9 +80,14 @@ def register(app: typer.Typer) -> None:
         console = make_console(stderr=as_json)
         props = [x.strip() for p in prop for x in p.split(",") if x.strip()]
         models = [p for p in paths if is_model_path(p)]
-        if (request or props) and not models:
-            raise RoarError("--request and --property are for a model or spec named on the command line; a job "
-                            "file says its own")
+        if (request or props or prop_files) and not models:
+            given = ", ".join(o for o, v in (("--request", request), ("--property", props),
+                                             ("--properties", prop_files)) if v)
+            if not any(p.is_file() or (p.is_dir() and any(p.glob("*.toml"))) for p in paths):
+                raise RoarError(f"no model, spec or job file among {', '.join(map(str, paths))}: {given} "
+                                f"{'needs' if ', ' not in given else 'need'} a .clf program or a ROAR spec named "
+                                f"on the command line")
+            raise RoarError(f"{given}: for a model or spec named on the command line; a job file says its own")
         if max_states is not None and max_states < 1:
             raise RoarError(f"--max-states {max_states}: expected a positive number of states")
         if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
@@ -95,7 +104,7 @@ def register(app: typer.Typer) -> None:
                 check_output_folder(folder, opt, list(paths))
         # every job file is checked before anything runs
         jobs = load_jobs(paths, request=request, properties=props, time=time, wait_timeout=wait_timeout,
-                         functional=functional)
+                         functional=functional, property_files=prop_files)
         files = [j.path for j in jobs if not is_model_path(j.path)]
         if search is not None or visited is not None:   # every job named, refused before anything runs
             from ..verify.jobs import apply_search_options

@@ -2574,7 +2574,9 @@ def check_crashes(spec: a.Spec, crashes: Optional[Crashes]) -> None:
     seen: set = set()
     for name, pos in zip(crashes.agents, where):
         if name not in known:
-            raise RoarError(f"{what}: unknown agent {name!r}; the spec's agents: {', '.join(known)}", pos)
+            from .props import did_you_mean
+            raise RoarError(f"{what}: unknown agent {name!r}{did_you_mean(name, known)}; the spec's agents: "
+                            f"{', '.join(known)}", pos)
         if name in seen and not crashes.scheduled:
             raise RoarError(f"{what}: agent {name!r} named twice", pos)
         seen.add(name)

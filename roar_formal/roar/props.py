@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import difflib
 import heapq
+import re
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Callable, Optional
@@ -374,6 +375,7 @@ def parse_formula(text: str, pos: Optional[Pos] = None, temporal: bool = True) -
         msg = f"unexpected {found}; expected {_expected_words(set(exc.accepts or exc.expected))}"
         if tok.type == "NAME" or (tok.type == "WORD"):
             msg += hint_for_word(str(tok))
+        msg += _hint_before(text, col, str(tok) if tok.type != "$END" else "")
         raise err(msg, col) from None
     except UnexpectedCharacters as exc:
         ch = text[exc.pos_in_stream] if exc.pos_in_stream < len(text) else ""
@@ -390,6 +392,29 @@ def parse_formula(text: str, pos: Optional[Pos] = None, temporal: bool = True) -
     if form != "state" and not temporal:
         raise err(f"'{form}' is a temporal form: write it under [temporal] (a state predicate goes here)", 1)
     return Formula(text, form, p, q, pos)
+
+
+#: the words a property begins with or joins its parts by (a misspelt one is suggested)
+_KEYWORDS = ("always", "eventually", "leads-to", "request", "agent", "task", "primitive", "constraint")
+
+
+def _hint_before(text: str, col: int, found: str) -> str:
+    """What the text before an unexpected token says went wrong: a nested temporal operator, a
+    misspelt keyword read as a name, a function call."""
+    before = text[:col - 1]
+    temporal = re.findall(r"(?<![\w:-])(always|eventually|leads-to)(?![\w-])", text)
+    if len(temporal) >= 2:
+        return (f" ('{temporal[0]}' and '{temporal[1]}': temporal operators do not nest; a property is "
+                "'always P', 'eventually P' or 'P leads-to Q', with P and Q state predicates)")
+    if found == "(" and re.search(r"[A-Za-z_][\w]*(::[A-Za-z_]\w*)?\s*$", before):
+        return (" (a property reads the spec's variables and ROAR events; it cannot call a function: "
+                "'primitive agent::f starts' and 'primitive agent::f ends' are the events of a call)")
+    last = re.search(r"(?<![\w:])([A-Za-z_][\w-]*)\s*$", before)
+    if last and last.group(1) not in _KEYWORDS and did_you_mean(last.group(1), _KEYWORDS):
+        return did_you_mean(last.group(1), _KEYWORDS)
+    if re.fullmatch(r"[A-Za-z_][\w-]*", found) and found not in _KEYWORDS and not hint_for_word(found):
+        return did_you_mean(found, _KEYWORDS)
+    return ""
 
 
 def hint_for_word(word: str) -> str:

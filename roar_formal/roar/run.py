@@ -857,7 +857,9 @@ class _CrashSchedule:
         known = [ag.name for ag in model.spec.agents]
         for c in cs:
             if c.agent not in known:
-                raise RoarError(f"--crash {c}: unknown agent {c.agent!r}; the spec's agents: {', '.join(known)}")
+                from .props import did_you_mean
+                raise RoarError(f"--crash {c}: unknown agent {c.agent!r}{did_you_mean(c.agent, known)}; the spec's "
+                                f"agents: {', '.join(known)}")
             if c.agent not in cr.agents:
                 raise RoarError(f"--crash {c}: the model was compiled without crashes of {c.agent} "
                                 f"(compile_spec(..., crashes=crash_setup(crashes)))")

@@ -719,17 +719,21 @@ def load_job(path: PathLike) -> Job:
 
 def load_jobs(paths: Sequence[PathLike], *, request: Optional[str] = None,
               properties: Sequence[str] = (), time: Any = None, wait_timeout: Optional[int] = None,
-              functional: Optional[PathLike] = None) -> list[Job]:
+              functional: Optional[PathLike] = None, property_files: Sequence[PathLike] = ()) -> list[Job]:
     """What ``roar-verify check PATH...`` checks: job files, the job files of folders (sorted), and
     models or specs named directly (checked for ``properties``, a spec on ``request`` with the
     functional layer ``functional`` or the module next to it, explored untimed or, with
-    ``time="timed"``, timed). Every job is read and checked before any runs."""
+    ``time="timed"``, timed; ``property_files`` say how to check them, as a job's would). Every
+    job is read and checked before any runs."""
     from ..verify.jobs import find_jobs, job_for_model
     from ..verify.jobs import load_job as read_job
     ps = [Path(p) for p in paths]
     models = [p for p in ps if is_model_path(p)]
     files = find_jobs([p for p in ps if not is_model_path(p)]) if len(models) < len(ps) else []
-    direct = [job_for_model(p, request, list(properties)) for p in models]
+    if property_files and not models:
+        raise RoarError("--properties is for a model or spec named on the command line; a job file names its "
+                        "own (properties = [\"file.toml\"])")
+    direct = [job_for_model(p, request, list(properties), property_files) for p in models]
     if wait_timeout is not None and not direct:
         raise RoarError("--wait-timeout is for a spec named on the command line; a job file says its own "
                         "([time] wait_timeout)")

@@ -15,7 +15,7 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Optional, Sequence
 
 from ..errors import ErrorList, Pos, RoarError, collecting
 from ..explore.search import Budget
@@ -156,7 +156,9 @@ def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
                 from ..roar.props import did_you_mean
                 hint = did_you_mean(str(k), sorted(allowed))
                 near = did_you_mean(str(k), BOUND_KEYS) if not hint and where == "a job file" else ""
-                if near:   # " (did you mean 'max_states'?)" with where it goes
+                if k in BOUND_KEYS and where == "a job file":
+                    hint = f" ('{k}' is a bound: it goes in a [bounds] table)"
+                elif near:   # " (did you mean 'max_states'?)" with where it goes
                     hint = near[:-1] + "; the bounds go in a [bounds] table)"
             raise RoarError(f"unknown key '{k}' in {where}{hint}; expected one of: {', '.join(sorted(allowed))}",
                             Pos(str(path), _line_of(path, k), 1))
@@ -181,7 +183,7 @@ def _typed(d: dict, key: str, ty, path: Path, what: str) -> Any:
     if ty is int and isinstance(v, bool) or not isinstance(v, ty):
         tn = {int: "an integer", str: "a string", list: "a list", bool: "true or false",
               float: "a number", dict: "a table"}.get(ty, str(ty))
-        raise RoarError(f"'{key}' in {what} must be {tn}, not {v!r}", Pos(str(path), _line_of(path, key), 1))
+        raise RoarError(f"'{key}' in {what} must be {tn}, not {_toml_value(v)}", Pos(str(path), _line_of(path, key), 1))
     if isinstance(v, str) and "\0" in v:   # no path, name or formula holds a NUL character
         raise RoarError(f"'{key}' in {what} holds a NUL character (\\u0000)", Pos(str(path), _line_of(path, key), 1))
     return v
@@ -468,7 +470,7 @@ def _robot_setup(d: dict, path: Path, base: Path) -> RobotSetup:
                 if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
                         (v < 0 if lowest == 0.0 else v <= 0):
                     raise RoarError(f"[robot.quantise] {k} must be a {'non-negative' if k == 'clock' else 'positive'} "
-                                    f"number, not {v!r}", _value_pos(path, k))
+                                    f"number, not {_toml_value(v)}", _value_pos(path, k))
                 vals[k] = float(v)
         if "memory" in q:
             vals["memory"] = _typed(q, "memory", bool, path, "[robot.quantise]")
@@ -572,6 +574,17 @@ def _named_file(base: Path, name: str, job: Path, key: str, what: str) -> Path:
     if not p.exists():
         raise RoarError(f"{key} = \"{name}\": no such {what} ({p})", _string_pos(job, key, name))
     return p
+
+
+def _toml_value(v) -> str:
+    """A value as TOML writes it (in messages about what a file holds)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (int, float)):
+        return repr(v)
+    return f"a {'table' if isinstance(v, dict) else 'list' if isinstance(v, list) else type(v).__name__}"
 
 
 def _in_order(errors: list[RoarError], path: Path) -> RoarError:
@@ -690,7 +703,7 @@ def load_job(path: str | Path) -> Job:
                 v = bt["bits"]
                 if isinstance(v, bool) or not isinstance(v, int) or not 1024 <= v <= 1 << 40:
                     raise RoarError(f"[bitstate] bits is the size of the bit array, a whole number from 1,024 to 2^40, "
-                                    f"not {v!r}"[:300], _value_pos(path, "bits"))
+                                    f"not {_toml_value(v)}"[:300], _value_pos(path, "bits"))
                 job.bits = v
     with collecting(errs):
         if "swarm" in d:
@@ -702,7 +715,7 @@ def load_job(path: str | Path) -> Job:
                 if key in sw:
                     v = sw[key]
                     if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                        raise RoarError(f"[swarm] {key} must be a whole number, at least 1, not {v!r}"[:300],
+                        raise RoarError(f"[swarm] {key} must be a whole number, at least 1, not {_toml_value(v)}"[:300],
                                         _value_pos(path, key))
                     setattr(job, attr, v)
     with collecting(errs):
@@ -718,7 +731,7 @@ def load_job(path: str | Path) -> Job:
         if "symmetry" in d:
             v = d["symmetry"]
             if not isinstance(v, bool):
-                raise RoarError(f"'symmetry' in a job file must be true or false, not {v!r}"[:300],
+                raise RoarError(f"'symmetry' in a job file must be true or false, not {_toml_value(v)}"[:300],
                                 _value_pos(path, "symmetry"))
             job.symmetry = v
             job.symmetry_at = _value_pos(path, "symmetry") if v else None
@@ -752,7 +765,8 @@ def load_job(path: str | Path) -> Job:
                     _expect_keys(e, set(PROPERTIES) | set(job.props.temporal), "[expect]", path)
             for k, v in e.items():
                 if v not in STATUSES:
-                    errs.append(RoarError(f"expected verdict of '{k}' must be 'holds' or 'violated', not {v!r}",
+                    errs.append(RoarError(f"expected verdict of '{k}' must be 'holds' or 'violated', not "
+                                          f"{_toml_value(v)}",
                                           Pos(str(path), _line_of(path, k), 1)))
                     continue
                 job.expect[k] = v
@@ -979,10 +993,13 @@ def is_model_path(p: Path) -> bool:
 COMMAND_LINE_SECONDS = 600.0
 
 
-def job_for_model(path: Path, request: Optional[str] = None, properties: Optional[list[str]] = None) -> Job:
+def job_for_model(path: Path, request: Optional[str] = None, properties: Optional[list[str]] = None,
+                  property_files: Sequence[str | Path] = ()) -> Job:
     """A job without a job file: ``check MODEL.clf`` or ``check SPEC --request ...`` with the
-    default properties (deadlock; for a spec, deadlock, mission-completion and mission-failure)
-    and no expectation (so any violation is an error)."""
+    properties named (``properties``), else those the ``property_files`` check, else the
+    defaults (deadlock; for a spec, deadlock, mission-completion and mission-failure), and no
+    expectation (so any violation is an error). The property files say how to check what they
+    name (livelock progress, invariants, temporal formulas), as a job file's would."""
     path = Path(path)
     spec = path.suffix != ".clf"
     if spec and not request:
@@ -993,21 +1010,34 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
     if not path.exists():
         raise RoarError(f"{path}: no such file or folder")
     from ..roar.props import did_you_mean
-    wanted = properties or (list(SPEC_DEFAULTS) if spec else ["deadlock"])
-    allowed = PROPERTIES if spec else tuple(p for p in PROPERTIES if p not in ROAR_PROPERTIES)
+    given = PropertySpec()
+    for f in property_files:
+        f = Path(f)
+        if not f.is_file():
+            raise RoarError(f"--properties {f}: no such file")
+        load_properties(f, given)
+    if not spec and given.spec_terms:
+        f = (given.spec_never + given.spec_always + given.spec_progress + list(given.temporal.values()))[0]
+        raise RoarError(f"property {f.text!r} is written in the spec's terms: it needs a ROAR spec; on a .clf "
+                        "model write CLF patterns ([invariant] never) and rule names ([livelock] progress)",
+                        f.pos)
+    wanted = properties or given.check or (list(SPEC_DEFAULTS) if spec else ["deadlock"])
+    allowed = (PROPERTIES if spec else tuple(p for p in PROPERTIES if p not in ROAR_PROPERTIES)) + tuple(given.temporal)
+    where = "--property" if properties else "--properties"
     for p in wanted:
         if p not in allowed:
-            raise RoarError(f"--property {p}{did_you_mean(p, allowed)}: expected one of {', '.join(allowed)}"
+            raise RoarError(f"{where} {p}{did_you_mean(p, allowed)}: expected one of {', '.join(allowed)}"
                             + ("" if spec else " (the others read ROAR events: check a spec)"))
         if p == "robot-invariant":
-            raise RoarError("--property robot-invariant needs a scenario and its conditions: write them in a "
+            raise RoarError(f"{where} robot-invariant needs a scenario and its conditions: write them in a "
                             "robot-backed job (docs/robot.md)")
-        if p == "invariant":
-            raise RoarError("--property invariant needs its never patterns: write them in a property file and "
-                            "a job (docs/checking.md)")
-        if p == "livelock" and not spec:
-            raise RoarError("--property livelock on a .clf program needs its progress rules: write them in a "
-                            "property file and a job (docs/checking.md)")
+        if p == "invariant" and not (given.never or given.spec_never or given.spec_always):
+            raise RoarError(f"{where} invariant needs its patterns: [invariant] never = [\"...\"] (or, on a "
+                            "spec, always = [\"...\"]) in a property file, named with --properties FILE "
+                            "(docs/checking.md)")
+        if p == "livelock" and not spec and not given.progress:
+            raise RoarError(f"{where} livelock on a .clf program needs its progress rules: [livelock] progress "
+                            "= [\"rule\"] in a property file, named with --properties FILE (docs/checking.md)")
     job = Job(path=path, name=path.stem if path.suffix else path.name, model=None if spec else path.resolve())
     # no job file gives a bound: a default one, so that a large state space ends with "incomplete"
     # and the budget named instead of running for hours (--max-states, --max-seconds override it)
@@ -1016,8 +1046,10 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
         job.spec = path.resolve()
         job.request = request
         job.request_at = Pos("--request", 1, 1)
-    job.props = PropertySpec(check=list(dict.fromkeys(wanted)), sources=["command line"],
-                             defaulted=not properties)
+    given.check = list(dict.fromkeys(wanted))
+    given.sources = [str(f) for f in property_files] + ["command line"]
+    given.defaulted = not properties and not property_files
+    job.props = given
     return job
 
 

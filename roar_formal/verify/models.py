@@ -99,12 +99,19 @@ def spec_properties(job: Job, model):
     return SpecChecks(job.props, model)
 
 
-def mark_defaults(props, verdicts: dict) -> None:
-    """Say which properties a job checked by default (a job on a spec that names none)."""
+def mark_defaults(props, verdicts: dict, roar: bool = False) -> None:
+    """Say which properties a job checked by default (a job on a spec that names none), and on a
+    spec, when livelock holds by the default progress (any request finishing), what that hides."""
     if getattr(props, "defaulted", False):
         for v in verdicts.values():
             if "(a default property)" not in v.message:
                 v.message += " (a default property)"
+    v = verdicts.get("livelock")
+    if roar and v is not None and v.status == "holds" and not props.progress and not props.spec_progress:
+        v.message += (" (progress: any request of any agent finishing, as no [livelock] progress is given; a "
+                      "retry whose sub-requests succeed counts as progress: to check that the job's request "
+                      "finishes, give progress = [\"request R0 finished\"] in a property file, e.g. with "
+                      "--properties FILE)")
 
 
 def roar_setup(job: Job, model) -> tuple:

@@ -83,7 +83,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
                     return (f"{w[0]} is written by the where clauses of two live constraints: "
                             f"{' and '.join(w[1])}") if w else None
                 verdicts[p] = check_states(graph, p, bad)
-        mark_defaults(props, verdicts)
+        mark_defaults(props, verdicts, roar=True)
         return verdicts
 
     def explore(opts: Options):

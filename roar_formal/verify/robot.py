@@ -214,7 +214,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
                 verdicts[p] = check_states(graph, p, bad)
             elif p == "robot-invariant":
                 verdicts[p] = check_states(graph, p, lambda sid: _robot_bad(states[sid].node))
-        mark_defaults(props, verdicts)
+        mark_defaults(props, verdicts, roar=True)
         return verdicts
 
     graph, verdicts = search_rounds(job, t0, explorer, decide)

@@ -219,6 +219,10 @@ def test_every_construct_parses(text, form):
     ("task a::t sleeping", 11, ["unknown task status", "running, paused, active, idle"]),
     ("request R2 running", 9, ["only R0"]),
     ("a::x leads to a::y", 6, ["'leads-to'"]),
+    ("always eventually a::x == 5", 19, ["'always' and 'eventually': temporal operators do not nest"]),
+    ("eventualy a::x == true", 11, ["did you mean 'eventually'"]),
+    ("a::read() == true", 8, ["unexpected '('", "cannot call a function", "primitive agent::f starts"]),
+    ("a::x == 5 lead-to a::y", 11, ["did you mean 'leads-to'"]),
 ])
 def test_syntax_errors_are_located_with_what_was_expected(text, col, words):
     from roar_formal.errors import Pos
@@ -436,7 +440,11 @@ def test_camera_retry_livelock_old_and_new_progress(tmp_path):
     new = run_job(load_job(_job(tmp_path, CAMERA_RETRY,
                                 'check = ["livelock"]\n[livelock]\nprogress = ["request R0 finished"]\n', name="new")))
     assert old.verdicts["livelock"].status == "holds"
+    # a holds by the default progress says what it counted as progress, and how to name the request's
+    assert "progress: any request of any agent finishing" in old.verdicts["livelock"].message
+    assert "request R0 finished" in old.verdicts["livelock"].message
     assert new.verdicts["livelock"].status == "violated"
+    assert "progress: any request" not in new.verdicts["livelock"].message
     _lasso_ok(new, new.verdicts["livelock"], lambda view: view.r0 in ("success", "failure"))
 
 

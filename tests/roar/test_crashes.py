@@ -364,7 +364,7 @@ def test_cli_run_crash(roar_cli):
     code, out, err = roar_cli("run", SPEC, "-r", LOCKED, "--crash", "cam@21")
     assert code == 1 and "unavailable: agent cam crashed" in out
     for bad, fragment in (("cam", "expected AGENT@STEP"), ("cam@0", "expected AGENT@STEP"),
-                          ("cam@5-3", "expected AGENT@STEP"), ("foo@3", "unknown agent 'foo'"),
+                          ("cam@5-3", "expected AGENT@STEP"), ("foo@3", "unknown agent 'foo'"), ("cma@3", "did you mean 'cam'?"),
                           ("cam@500", "never crashed")):
         code, out, err = roar_cli("run", SPEC, "-r", DONE, "--crash", bad)
         assert code == 2 and err.startswith("error: ") and fragment in err and "Traceback" not in err, (bad, err)
@@ -383,6 +383,7 @@ def test_crash_at_parses():
 
 @pytest.mark.parametrize("faults,fragment,line,col", [
     ('[faults]\ncrash = ["cam", "nobody"]\n', "unknown agent 'nobody'", 4, 18),
+    ('[faults]\ncrash = ["cma"]\n', "unknown agent 'cma' (did you mean 'cam'?)", 4, 11),
     ('[faults]\ncrash = ["cam"]\nmax_crashes = 0\n', "max_crashes is the number of crashes", 5, 15),
     ('[faults]\ncrash = ["cam"]\nmax_crashes = "two"\n', 'not "two"', 5, 15),
     ('[faults]\ncrash = ["cam"]\nmax_crashes = true\n', "not true", 5, 15),
