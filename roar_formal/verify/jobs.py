@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -670,7 +671,10 @@ def load_job(path: str | Path) -> Job:
             if not isinstance(p, str) or "\0" in p:
                 raise RoarError(f"'properties' must be a path or a list of paths, not a list holding {p!r}"[:300],
                                 Pos(str(path), _line_of(path, "properties"), 1))
-            load_properties(_named_file(base, p, path, "properties", "property file"), job.props)
+            _named_file(base, p, path, "properties", "property file")
+            # (read as the job names it: its errors then point at the file as the job's do, relative
+            # when the job was named relative)
+            load_properties(Path(os.path.normpath(base / p)), job.props)
         bad.discard("properties")
     for key, allowed in (("backend", ("auto", "ground", "general")), ("search", ("bfs", "dfs", "swarm", "distributed")),
                          ("visited", ("exact", "hash", "bitstate"))):
