@@ -59,7 +59,7 @@ def test_a_start_past_the_models_exec_directives_is_located(roar_cli, tmp_path):
                                      encoding="utf-8")
     code, out, err = roar_cli("check", tmp_path / "j.toml")
     assert code == 2
-    assert f"{tmp_path / 'j.toml'}:2:1: 'start = 5' but m.clf has only 1 #exec directive(s)" in out + err
+    assert f"{tmp_path / 'j.toml'}:2:1: 'start = 5' but m.clf has only 1 #exec or #trace directive(s)" in out + err
 
 
 def test_the_default_property_of_a_program_is_marked(roar_cli, tmp_path):

@@ -956,7 +956,7 @@ class _Names:
         for act in step.template.head:
             if act[0] == "fresh":
                 b = step.bindings[act[1]]
-                pattern.append(self.bw.program.show(b).replace("#", ""))
+                pattern.append(self.bw.program.show(b).replace("#", "_"))
         for _mode, x in step.produced:
             n = self.bw.fresh_name()
             self.bind(x, n)

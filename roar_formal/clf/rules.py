@@ -20,7 +20,7 @@ from ..errors import Pos, UnsupportedError
 from .builtins import BUILTINS
 from .printer import show
 from .terms import (Aff, Bang, BVar, Const, Exists, Imp, Lam, Meta, Monad, Node, One, Pi, Root, Tensor, Top,
-                    TypeNode, With, apply, subst)
+                    TypeNode, With, apply, bvar, map_bvars, subst)
 
 LIN, PERS, AFF = "1", "!", "@"
 
@@ -299,9 +299,21 @@ def _is_fresh_anywhere(actions: list, slot: int) -> bool:
 
 
 def _collect_head(actions: list, acc: set) -> None:
+    """The slots the head reads: its facts' variables, and the outer variables a rule it puts in
+    the context refers to (a variable only such a rule uses is as open as one only a fact uses)."""
     for a in actions:
         if a[0] == "fact":
             _metas_bound_by(a[2], acc)
+        elif a[0] == "rule":
+            outer = list(reversed(a[4]))   # de Bruijn index k (outside the rule) -> slot
+            seen: set = set()
+
+            def note(i: int, d: int) -> Node:
+                seen.add(i - d)
+                return bvar(i)
+
+            map_bvars(a[3], 0, note)
+            acc.update(outer[k] for k in seen if k < len(outer))
 
 
 def describe(t: Template) -> str:

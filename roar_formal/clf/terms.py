@@ -874,9 +874,11 @@ def _render(t: Node, names: list[str], prec: int, out: list[str], imp: bool, tab
                 parts.append(")")
             stack.extend(reversed(parts))
         elif tt is Lam:
+            # (a lambda in a term is a persistent function: the engine refuses linear and affine
+            # lambdas as index terms, and Celf writes a persistent one '\!x.')
             v = _fresh(names, "x")
             paren = prec > _P_BINDER
-            parts = (["("] if paren else []) + [f"\\{v}. ", (t.body, names + [v], _P_BINDER)] + ([")"] if paren else [])
+            parts = (["("] if paren else []) + [f"\\!{v}. ", (t.body, names + [v], _P_BINDER)] + ([")"] if paren else [])
             stack.extend(reversed(parts))
         else:
             stack.extend(reversed(_type_parts(t, names, prec)))

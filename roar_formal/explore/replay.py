@@ -71,7 +71,7 @@ def replay_steps(path, program: Program, start: int, steps: list[dict],
     notes = notes if notes is not None else []
     execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
     if start > len(execs):
-        raise RoarError(f"{path}: start #{start} but the model has {len(execs)} #exec directive(s)")
+        raise RoarError(f"{path}: start #{start} but the model has {len(execs)} #exec or #trace directive(s)")
     begin = program.start_context(execs[start - 1].start)
     system = make_system(program, begin) if make_system is not None else ClfSystem(program, begin, Options())
     state = system.initial()

@@ -1485,7 +1485,7 @@ class ClfModel:
         k = start if start is not None else self.start
         execs = [d for d in self.program.sig.directives if isinstance(d, ExecDirective)]
         if not 1 <= k <= len(execs):
-            raise RoarError(f"{self.name}: start {k} but the program has {len(execs)} #exec directive(s)")
+            raise RoarError(f"{self.name}: start {k} but the program has {len(execs)} #exec or #trace directive(s)")
         return self.program.start_context(execs[k - 1].start)
 
     def run(self, *, start: Optional[int] = None, seed: Optional[int] = 0, max_steps: int = 100_000,

@@ -25,7 +25,7 @@ from ..explore.system import ClfSystem, Options
 from .cluster import cluster_note
 from .explorers import make_explorer, run_search
 from .jobs import Job
-from .models import load_model, make_accept, make_never, mark_defaults, reduction_options
+from .models import check_progress_rules, load_model, make_accept, make_never, mark_defaults, reduction_options
 from .results import JobResult, counterexample_steps, roar_events, save_counterexample
 from .roar_jobs import run_roar_job
 from .robot import run_robot_job   # the robot is the functional layer
@@ -56,6 +56,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
     program, start = load_model(job)
     fingerprint = clf_fingerprint(job.model)
     props = job.props
+    check_progress_rules(props, program, spec=False)
     options = Options(progress_rules=tuple(props.progress), fairness=props.fairness, canonical=job.canonical)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
                              "[deadlock] accept") if props.accept else None

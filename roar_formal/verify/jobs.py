@@ -60,6 +60,7 @@ class PropertySpec:
     # [incompatible-tasks] pairs: ((text, Pos), (text, Pos)) of 'agent::task' names declared incompatible;
     # empty: the pairs the spec's post-conditions make incompatible
     incompatible_pairs: list = field(default_factory=list)
+    progress_at: dict = field(default_factory=dict)     # a [livelock] progress rule name -> where it is written
 
     @property
     def spec_terms(self) -> bool:
@@ -248,6 +249,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
                     spec.spec_progress.append(parse_formula(x, _string_pos(path, "progress", x), temporal=False))
                 else:
                     spec.progress.append(str(x))
+                    spec.progress_at.setdefault(str(x), _string_pos(path, "progress", str(x)))
         if "fairness" in ll:
             f = _typed(ll, "fairness", str, path, "[livelock]")
             if f not in ("first-argument", "rule", "none"):
@@ -659,7 +661,7 @@ def load_job(path: str | Path) -> Job:
             job.start = _typed(d, "start", int, path, "a job file")
             job.start_at = Pos(str(path), _line_of(path, "start"), 1)
             if job.start < 1:
-                raise RoarError("'start' counts #exec directives from 1", Pos(str(path), _line_of(path, "start"), 1))
+                raise RoarError("'start' counts #exec and #trace directives from 1", Pos(str(path), _line_of(path, "start"), 1))
     with collecting(errs):
         bad.add("properties")
         props = d.get("properties", [])

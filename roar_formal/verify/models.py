@@ -20,9 +20,9 @@ def load_model(job: Job) -> tuple[Program, Context]:
     program = Program.from_file(job.model)
     execs = [d for d in program.sig.directives if isinstance(d, ExecDirective)]
     if not execs:
-        raise RoarError(f"{job.model} has no #exec directive to start the search from", None)
+        raise RoarError(f"{job.model} has no #exec or #trace directive to start the search from", None)
     if job.start > len(execs):
-        raise RoarError(f"'start = {job.start}' but {job.model.name} has only {len(execs)} #exec directive(s)",
+        raise RoarError(f"'start = {job.start}' but {job.model.name} has only {len(execs)} #exec or #trace directive(s)",
                         job.start_at)
     return program, program.start_context(execs[job.start - 1].start)
 
@@ -114,6 +114,25 @@ def mark_defaults(props, verdicts: dict, roar: bool = False) -> None:
                       "--properties FILE)")
 
 
+def check_progress_rules(props, program, spec: bool) -> None:
+    """Refuse a livelock progress rule name (or glob) that names no rule of the program: it would
+    make no step progress, and the livelock verdict would silently be another property's."""
+    if "livelock" not in props.check:
+        return
+    import fnmatch
+    from ..roar.props import did_you_mean
+    names = [t.name for t in program.templates]
+    for pat in props.progress:
+        if not any(fnmatch.fnmatchcase(n, pat) for n in names):
+            where = f" ({', '.join(map(str, props.sources))})" if props.sources else ""
+            what = ("neither a predicate in the spec's terms (such as 'request R0 finished' or 'gripper::busy == "
+                    "false') nor the name of a rule of the compiled model") if spec else \
+                f"not the name of a rule of the model, nor a pattern matching one{did_you_mean(pat, names)}"
+            at = getattr(props, "progress_at", {}).get(pat)
+            raise RoarError(f"livelock progress {pat!r}{'' if at else where} is {what}: it would make no step "
+                            f"progress", at)
+
+
 def roar_setup(job: Job, model) -> tuple:
     """(program, start context, options, sequential pairs) of a job on a compiled spec: weak
     fairness per agent, the property files' progress rules (or requests reaching a final state)."""
@@ -122,15 +141,7 @@ def roar_setup(job: Job, model) -> tuple:
     start_d = next(d for d in program.sig.directives if isinstance(d, ExecDirective))
     start = program.start_context(start_d.start)
     props = job.props
-    if "livelock" in props.check:
-        import fnmatch
-        names = [t.name for t in program.templates]
-        for pat in props.progress:
-            if not any(fnmatch.fnmatchcase(n, pat) for n in names):
-                where = f" ({', '.join(map(str, props.sources))})" if props.sources else ""
-                raise RoarError(f"livelock progress {pat!r}{where} is neither a predicate in the spec's terms (such as "
-                                f"'request R0 finished' or 'gripper::busy == false') nor the name of a rule of the "
-                                f"compiled model: it would make no step progress")
+    check_progress_rules(props, program, spec=True)
     options = Options(progress_rules=tuple(props.progress) or PROGRESS_RULES, fairness="agent",
                       canonical=job.canonical)
     pairs = []

@@ -138,3 +138,37 @@ def test_a_pipeline_cut_short_stops_quietly(tmp_path):
     p.wait(timeout=120)
     assert first.startswith(b"Query (")
     assert p.returncode == 141 and "Traceback" not in err and "internal error" not in err, err
+
+
+HOAS = """tm : type.
+lam : (tm -> tm) -> tm.
+app : tm -> tm -> tm.
+step : tm -> tm -> type.
+beta : step (app (lam \\!x. M x) N) (M N).
+#query * 1 * 1 step (app (lam \\!x. app x x) (lam \\!y. y)) R.
+"""
+
+
+def test_printed_answers_read_back_as_input():
+    """A lambda in an answer is a persistent function and prints as Celf writes one (``\\!x.``):
+    the answer, pasted into a program, type-checks and denotes the same term."""
+    lines: list[str] = []
+    prog = Program.from_text(HOAS, "<t>")
+    with_big_stack(run_directives, prog, emit=lines.append)
+    answer = next(x for x in lines if x.startswith(" #R = "))[len(" #R = "):]
+    assert answer == "app (lam (\\!x. x)) (lam (\\!x. x))", lines
+    back = Program.from_text(HOAS + f"same : step (app (lam \\!x. app x x) (lam \\!y. y)) ({answer}).\n", "<t>")
+    lines = []
+    with_big_stack(run_directives, back, emit=lines.append)
+    assert any(x.startswith(" #R = ") for x in lines)
+
+
+def test_fresh_names_in_proof_terms_keep_their_number_apart():
+    """A fresh name's hint and its number are told apart in a proof term (``d1_7``, not ``d17``)."""
+    lines: list[str] = []
+    text = ("dest : type. r : type. done : type. e : dest -> type.\n"
+            "mk : r -o {Exists d1. e d1}.\nuse : e D -o {done}.\n#query * 1 * 1 r -o {done}.\n")
+    with_big_stack(run_directives, Program.from_text(text, "<t>"), emit=lines.append, proofs=True)
+    sol = next(x for x in lines if x.startswith("Solution:"))
+    import re
+    assert re.search(r"let \{\[d1_\d+, X\d+\]\}", sol), sol   # e.g. let {[d1_7, X2]} = mk X1

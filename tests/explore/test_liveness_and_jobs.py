@@ -248,3 +248,19 @@ deadlock = "violated"
         main(["replay", str(trace), "--model", str(model)])
     assert e.value.code == 0, capsys.readouterr()
     assert "replayed 4 steps" in capsys.readouterr().out
+
+
+def test_a_progress_rule_name_that_names_no_rule_is_refused_where_it_is_written(tmp_path, roar_cli):
+    """A misspelt progress rule would make no step progress, and livelock would report every
+    cycle: refused at its place in the property file, with the rule meant."""
+    props = tmp_path / "p.toml"
+    props.write_text('check = ["livelock"]\n[livelock]\nprogress = ["eta"]\n', encoding="utf-8")
+    job = tmp_path / "j.toml"
+    job.write_text(f'model = "{ROOT / "models" / "philosophers" / "ll.clf"}"\nproperties = ["p.toml"]\n',
+                   encoding="utf-8")
+    code, out, err = roar_cli("check", job)
+    assert code == 2 and "Traceback" not in out + err
+    assert f"{props}:3:14: livelock progress 'eta' is not the name of a rule" in err and "did you mean 'eat'" in err
+    props.write_text('check = ["livelock"]\n[livelock]\nprogress = ["ea*"]\n', encoding="utf-8")   # a glob: fine
+    code, out, err = roar_cli("check", job, "--no-traces")
+    assert code == 1 and "livelock: violated" in out
