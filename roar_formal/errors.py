@@ -81,6 +81,14 @@ class QueryError(RoarError):
     """A directive whose outcome differs from what it declared (e.g. solution count)."""
 
 
+def did_you_mean(word: str, choices) -> str:
+    """A hint naming the choice closest to a misspelt word, " (did you mean 'x'?)"; empty when
+    none is close. Here, below every reader of user input, so that any of them can use it."""
+    import difflib
+    m = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean '{m[0]}'?)" if m else ""
+
+
 def json_message(exc) -> str:
     """A ``json.JSONDecodeError``'s message for a located error: Python's ends some with "at"
     (its own text gives the position next), so that word becomes "here"."""

@@ -122,3 +122,16 @@ def test_shell_completion_names_commands_and_options():
     env.update(COMP_WORDS="roar-verify check --max", COMP_CWORD="2")
     r = subprocess.run([sys.executable, "-m", "roar_formal"], capture_output=True, text=True, env=env, timeout=60)
     assert set(r.stdout.split()) == {"--max-states", "--max-seconds", "--max-memory"}
+
+
+def test_check_cut_short_by_its_reader_is_not_a_differing_verdict(tmp_path):
+    """`check ... | head -1`: the reader leaves; the status is a pipeline's 141, not the 1 of a
+    verdict that differs from its expectation (rich's default), and no traceback."""
+    code = ("import sys\nfrom roar_formal.cli import main\nmain(['check', sys.argv[1], '--no-traces'])\n")
+    many = [str(ROOT / "checker" / n) for n in ("philosophers_dl5.toml",) * 1]
+    p = subprocess.Popen([sys.executable, "-c", code, *many], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         env={"COLUMNS": "300", "PATH": "/usr/bin:/bin"}, cwd=tmp_path)
+    p.stdout.close()  # the reader leaves before the first line (as `| head -0` would)
+    err = p.stderr.read().decode()
+    p.wait(timeout=300)
+    assert p.returncode == 141 and "Traceback" not in err and "internal error" not in err, (p.returncode, err)

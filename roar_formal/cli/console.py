@@ -26,6 +26,20 @@ class SafeConsole(Console):
     def render_str(self, text: str, **kwargs: Any) -> Text:  # every printed string passes here
         return super().render_str(visible(text), **kwargs)
 
+    def on_broken_pipe(self) -> None:
+        """The reader of the output went away (``check ... | head``): stop quietly with the status
+        of a process killed by SIGPIPE (128 + 13) as a shell reports it, not rich's 1, which
+        would read as "a verdict differs from its expectation". The SIGTERM path unwinds the
+        same way, so files being written are removed."""
+        import os
+        import sys
+        self.quiet = True
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # no real file behind sys.stdout (a test's capture)
+            pass
+        raise SystemExit(141)
+
 
 def make_console(**kwargs: Any) -> Console:
     """A console with emoji substitution, markup and highlighting off (overridable per print).

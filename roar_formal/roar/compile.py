@@ -39,7 +39,7 @@ from ..clf import surface as S
 from ..clf.build import (BUILT, Comment, Rule, args_of, backward, decl, exec_, fact, format_items, format_term,
                          head_of, number, q, query, string, tensor)
 from ..clf.terms import format_number
-from ..errors import Pos, RoarError, UnsupportedError, written_at
+from ..errors import Pos, RoarError, UnsupportedError, did_you_mean, written_at
 from . import ast as a
 from .checks import CheckedSpec, typed_request
 from .spec import checked_spec
@@ -2574,7 +2574,6 @@ def check_crashes(spec: a.Spec, crashes: Optional[Crashes]) -> None:
     seen: set = set()
     for name, pos in zip(crashes.agents, where):
         if name not in known:
-            from .props import did_you_mean
             raise RoarError(f"{what}: unknown agent {name!r}{did_you_mean(name, known)}; the spec's agents: "
                             f"{', '.join(known)}", pos)
         if name in seen and not crashes.scheduled:

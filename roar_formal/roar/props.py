@@ -28,7 +28,6 @@ line and column of the string and a did-you-mean.
 
 from __future__ import annotations
 
-import difflib
 import heapq
 import re
 from dataclasses import dataclass, field
@@ -39,7 +38,7 @@ import numpy as np
 from lark import Lark, Transformer, v_args
 from lark.exceptions import UnexpectedCharacters, UnexpectedInput, UnexpectedToken, VisitError
 
-from ..errors import Pos, RoarError
+from ..errors import Pos, RoarError, did_you_mean
 
 #: an empty error context: the logic layer found no task (nothing was tried)
 NO_TASK = "empty: no task of the target agent can handle it (nothing was tried)"
@@ -326,11 +325,6 @@ class _Located(Exception):
     def __init__(self, message: str, col: int):
         super().__init__(message)
         self.message, self.col = message, col
-
-
-def did_you_mean(word: str, choices) -> str:
-    m = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
-    return f" (did you mean '{m[0]}'?)" if m else ""
 
 
 def _expected_words(names: set) -> str:

@@ -24,7 +24,7 @@ from typing import Callable, Optional
 from ..clf.forward import Run, enabled_steps
 from ..clf.printer import show
 from ..clf.terms import Const, Root, const, num_term, num_value, string_term, string_value
-from ..errors import RoarError
+from ..errors import RoarError, did_you_mean
 from ..trace.format import ROAR_EVENT_KINDS
 from .compile import CRASH_RULES, CompiledModel, Crashes, num_lit
 
@@ -857,7 +857,6 @@ class _CrashSchedule:
         known = [ag.name for ag in model.spec.agents]
         for c in cs:
             if c.agent not in known:
-                from .props import did_you_mean
                 raise RoarError(f"--crash {c}: unknown agent {c.agent!r}{did_you_mean(c.agent, known)}; the spec's "
                                 f"agents: {', '.join(known)}")
             if c.agent not in cr.agents:

@@ -11,7 +11,6 @@ line and column of the offending key or value, saying what was expected.
 from __future__ import annotations
 
 import bisect
-import difflib
 import hashlib
 import math
 import re
@@ -21,6 +20,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from ..errors import Pos, RoarError
+from ..errors import did_you_mean as errors_did_you_mean
 
 Point = tuple[float, float]
 Rect = tuple[float, float, float, float]
@@ -414,8 +414,7 @@ class _Locator:
 
 def did_you_mean(name: str, candidates) -> str:
     """A hint naming the closest candidate to a misspelt name (empty when none is close)."""
-    close = difflib.get_close_matches(name, sorted(set(candidates)), n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
+    return errors_did_you_mean(name, sorted(set(candidates)))
 
 
 def _show(value: Any) -> str:
