@@ -41,8 +41,11 @@ def trace_claim(job, prop: str) -> dict:
                      formula=props.temporal[prop].text)
     elif prop == "incompatible-tasks":   # the declared pairs; none: those the spec's post-conditions make
         claim["incompatible"] = [[a, b] for (a, _pa), (b, _pb) in props.incompatible_pairs]
-    elif prop == "invariant" and (props.spec_always or props.spec_never):
-        claim.update(always=[f.text for f in props.spec_always], never=[f.text for f in props.spec_never])
+    elif prop == "invariant":
+        if props.spec_always or props.spec_never:
+            claim.update(always=[f.text for f in props.spec_always], never=[f.text for f in props.spec_never])
+        if props.never:   # CLF patterns (a .clf model's, or next to predicates on a spec)
+            claim["never_patterns"] = [pat for pat, _pos in props.never]
     if claim and not job.is_roar:   # a .clf model's processes (a spec's are its agents)
         claim["groups"] = props.fairness
     return claim
@@ -131,7 +134,25 @@ def _unfair(res: ReplayResult, k: int, strong: bool) -> Optional[str]:
             f"but never {'moves' if len(idle) == 1 else 'move'}; a fair run leaves it")
 
 
+def _never_patterns(claim: dict, res: ReplayResult, path) -> Optional[str]:
+    """The forbidden CLF pattern of the claim the replayed final state matches, if any (None
+    also when the claim names none)."""
+    pats = _texts(claim, "never_patterns", path)
+    program = getattr(res.system, "program", None)
+    if not pats or program is None:
+        return None
+    from .models import make_never
+    bad = make_never(program.sig, str(path), [(p, Pos(str(path), 1, 1)) for p in pats])
+    why = bad(res.states[-1])
+    return why.replace("a reachable state", "the final state", 1) if why else None
+
+
 def _confirm_clf(claim: dict, res: ReplayResult, k: Optional[int], path) -> Optional[tuple[Optional[bool], str]]:
+    if "never_patterns" in claim:
+        why = _never_patterns(claim, res, path)
+        if why:
+            return True, why
+        return False, "the final state matches none of the job's forbidden patterns on this model"
     rules = _texts(claim, "progress_rules", path)
     if k is None or "progress_rules" not in claim:
         return None
@@ -169,8 +190,11 @@ def _confirm_spec(claim: dict, prop, res: ReplayResult, k: Optional[int], m: Com
         if why:
             return True, f"in the final state {why}"
         return False, "in the final state no two live requests hold incompatible tasks on this model"
-    if "always" in claim or "never" in claim:
+    if "always" in claim or "never" in claim or "never_patterns" in claim:
         end = views[-1]
+        why = _never_patterns(claim, res, path)
+        if why:
+            return True, why
         for t in _texts(claim, "always", path):
             f = _formula(t, path, temporal=False).bind(m)
             if not f.pf(end):

@@ -111,3 +111,34 @@ def test_an_unfair_cycle_is_not_confirmed(tmp_path):
     with pytest.raises(RoarError, match='claim.groups') as e:
         replay_trace(broken, tmp_path / "m.clf")
     assert e.value.pos.line == 1
+
+
+@pytest.mark.parametrize("spec", [False, True], ids=["clf", "spec"])
+def test_an_invariant_of_clf_patterns_is_re_decided(tmp_path, spec):
+    """A counterexample of an invariant written as CLF patterns carries them; replay matches the
+    final state against them (confirmed), and against a pattern it does not match (not)."""
+    props = tmp_path / "p.toml"
+    if spec:   # a CLF pattern next to the spec's predicates: here the compiled model's own facts
+        model = FAULTY / "mutual_make.roar"
+        props.write_text('check = ["invariant"]\n[invariant]\nnever = ["rs R s_running"]\n', encoding="utf-8")
+        body = f'spec = "{model}"\nrequest = "arm::started == true"\n'
+    else:
+        model = ROOT / "models" / "philosophers" / "dl.clf"
+        props.write_text('check = ["invariant"]\n[invariant]\nnever = ["busy P * busy Q"]\n', encoding="utf-8")
+        body = f'model = "{model}"\n'
+    job = tmp_path / "j.toml"
+    job.write_text(body + 'properties = ["p.toml"]\n', encoding="utf-8")
+    res = with_big_stack(lambda: run_job(load_job(job)))
+    assert res.verdicts["invariant"].status == "violated", res.verdicts["invariant"].message
+    trace = save_counterexample(res, "invariant", tmp_path)
+    header = json.loads(trace.read_text(encoding="utf-8").splitlines()[0])
+    assert header["claim"]["never_patterns"] == [json.loads(props.read_text().split("never = ")[1])[0]]
+    rep = with_big_stack(lambda: replay_trace(trace, model))
+    assert rep.confirmed is True and "the final state matches the forbidden pattern" in rep.confirmation
+    # a pattern the final state does not match: three busy philosophers where two were found; a
+    # request failed where one runs
+    other = "busy P * busy Q * busy R" if not spec else "rs R s_failure"
+    bad = _edit(trace, tmp_path / "bad.jsonl", header=lambda h: h["claim"].__setitem__("never_patterns", [other]))
+    rep = with_big_stack(lambda: replay_trace(bad, model))
+    assert rep.confirmed is False, rep.confirmation
+    assert ("matches none of the job's forbidden patterns" if not spec else "breaks none") in rep.confirmation
