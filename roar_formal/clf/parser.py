@@ -562,6 +562,10 @@ def _hints(e: UnexpectedToken, expected: set[str], text: str) -> list[str]:
     elif open_ and _CLOSER_OF[open_[-1].type] in expected:
         o = open_[-1]
         hints.append(f"the '{o}' at {o.line}:{o.column} is not closed")
+        # Twelf's binder {X:A} B: in Celf, braces are the monad, and a binder is written Pi
+        name = text[o.end_pos:tok.start_pos].strip() if o.end_pos is not None and tok.start_pos is not None else ""
+        if str(o) == "{" and tok.type == "_COLON" and re.fullmatch(_WORD_RE + "+", name):
+            hints.append(f"Twelf's '{{{name}:A}} B' is written 'Pi {name}:A. B' in Celf (braces are the monad)")
 
     # A bound of #query/#exec/#trace that is not a number.
     if {"NUM", "ONE"} <= expected and not expected & _ARROWS and "ID" not in expected:
