@@ -865,6 +865,10 @@ class RunReport:
             end = ("quiescent" if self.quiescent else
                    f"stopped at the bound of {self.max_steps} steps, the functional layer's answers included")
             out.add((f"request {self.outcome}", style), f" after {self.clf_steps} CLF steps ({end})", wrap=True)
+            if not self.quiescent:   # a run stops where a bound says, not where the system does
+                out.add("  one run cannot tell whether this goes on forever: `roar-verify check` on the same spec "
+                        "and request decides it for every run (mission-completion, and livelock with a progress "
+                        "property), with a lasso when it can", wrap=True)
             for line in self.error_context:
                 out.add(f"  error context: {line}", wrap=True)
             if self.outcome == "failure" and not self.error_context:   # (as the explorer says it)

@@ -116,6 +116,9 @@ def test_a_run_that_does_not_finish_exits_1(capsys):
     m = RESULT_LINE.search(out)
     assert m[1] != "success" and m[2] == "5"
     assert m[3] == "stopped at the bound of 5 steps, the functional layer's answers included"
+    assert "one run cannot tell whether this goes on forever: `roar-verify check`" in " ".join(out.split())
+    code, out, err = run_cli(capsys, DEMO)   # a run that ends says nothing of the kind
+    assert code == 0 and "one run cannot tell" not in out
 
 
 def test_unknown_variable_in_the_request_exits_2_located(capsys):
