@@ -149,13 +149,6 @@ unavailable_check_call : hs R (h_rchk _ _ _ _ _) EC F Pl _ -o chk I R _ _ -o ctl
                -o rq R A C J K -o cep A E -o !ep_dead F E -o rs R _ -o mask A M -o !mrm M Pl M1
                -o {rq R A C J K * cep A E * rs R s_failure * ecf R (vcons (vunavail A) EC) * mask A M1 * orphan D}.
 
-% an activation killed earlier and still running its end block, paused by its emitter, whose request
-% is then aborted (its emitter released) takes the abort's kill as a repeat (kill_again) and would
-% wait for a continue that no one is left to send: the release lifts the emitter's pause. Crashes
-% make this reachable (a constraint fails at any moment); docs/semantics.md, Known gaps
-released_unpause : rq R A C irel K -o ending I Kn -o act I R T Rc N -o rstat I (pz M tt) -o !parent_cont (pz M tt) Z
-                    -o {rq R A C irel K * ending I Kn * act I R T Rc N * rstat I Z}.
-
 % an activation serving a dead request stops: a crashed agent runs nothing, not even the end block;
 % the requests it holds are aborted as at a recipe's end (cleanup_abort), then it ends with k_crash
 % (recipe_end_failed), which fails its request (unavailable_run) or completes its abort (aborted)

@@ -116,17 +116,22 @@ def test_the_search_goes_on_through_a_task_run():
     outside. The search used to stop at the task run, leaving its search fact behind, and the
     inspector's constraint waited for the ptu instead of failing with the concurrency issue."""
     model = compile_spec(load_spec(DATA / "taskrun_context.roar"), REQUEST)
-    through_run = 0
-    for seed in range(8):
+    through_run = met = 0
+    for seed in range(16):
         left: list = []
         r = run_model(model, seed=seed, on_state=lambda ctx: left.__setitem__(slice(None), _facts(ctx, "cres")))
         chain = [e for e in r.events if e.kind == "calling-context"]
-        assert chain, "every schedule of this network meets the conflict"
-        assert chain[-1].text.endswith("is a request from outside: the conflict cannot be resolved")
+        if not chain:   # (a schedule where the ptu is free when the inspector asks)
+            continue
+        met += 1
+        # the search ends at the request from outside, or finds the holder's emitter aborted meanwhile
+        # (the tasks are then released to the waiting request)
+        assert chain[-1].text.endswith(("is a request from outside: the conflict cannot be resolved",
+                                        "was aborted: waiting for its tasks to be released")), chain[-1].text
         assert left == []   # no search is left half-way
         if any(e.agent == "sensor" for e in chain):   # the holder was aim's ensure: R2 is the task run
             through_run += 1
             assert [e.agent for e in chain] == ["ptu", "sensor", "mission"]
             assert r.outcome == "failure"
             assert any(x.startswith("concurrency: task ptu::point is held") for x in r.error_context)
-    assert through_run >= 2
+    assert met >= 8 and through_run >= 2, (met, through_run)
