@@ -130,10 +130,14 @@ def register(app: typer.Typer) -> None:
                       "began": _time.monotonic()}
 
             def progress(st: dict, job=job) -> None:
+                phase = st.get("phase")   # (a robot job's comparison: the abstract model's search)
+                if phase != status.get("phase"):
+                    status.update(phase=phase, round=1, last=0)
                 if st["states"] < status["last"]:   # a search started again with a larger budget
                     status["round"] += 1
                 status["last"] = st["states"]
                 rnd = f" (round {status['round']})" if status["round"] > 1 else ""
+                rnd = f" ({phase}){rnd}" if phase else rnd
                 status["text"] = (f"{job.name}{rnd}: {st['states']:,} states, {st['transitions']:,} transitions, "
                                   f"{st['states_per_s']:,.0f} states/s, frontier {st['frontier']:,}, "
                                   f"{st['memory_mb']:,.0f} MiB, {_time.monotonic() - status['began']:,.0f} s")

@@ -32,7 +32,10 @@ def split_faults(names: list[str], scenario, model=None) -> tuple[list[str], lis
         except RoarError:
             f = None
         if f is None or (model is not None and f.name not in functions):
-            raise RoarError(f"--fault {n!r}: not a fault point of scenario '{scenario.name}' "
+            from ..errors import did_you_mean
+            name = f.name if f is not None else n
+            hint = did_you_mean(name, sorted(known | functions))
+            raise RoarError(f"--fault {n!r}{hint}: not a fault point of scenario '{scenario.name}' "
                             f"({', '.join(sorted(known)) or 'it has none'}) nor a primitive fault "
                             f"(NAME, NAME:K or NAME=OUTCOME, NAME a function the spec calls)")
         prims.append(f)

@@ -34,9 +34,9 @@ from ..clf.terms import Const, Root, const
 from ..errors import RoarError
 from ..roar import vocabulary as V
 from ..roar.compile import CompiledModel
-from ..roar.functional import Registry
+from ..roar.functional import Registry, misfit, type_table
 from ..roar.run import (Fault, Narrator, Resolver, RoarEvent, RunResult, Values, collect_result, list_items,
-                        primitive_error, site_of)
+                        primitive_error, primitive_result_error, site_of)
 from .activity import Activity, CallResult
 from .robot import Robot
 from .scenario import Scenario
@@ -223,6 +223,7 @@ class _Sim:
         start = next(d for d in prog.sig.directives if hasattr(d, "start"))
         self.ctx = prog.start_context(start.start)
         self.values = Values(model)
+        self.types: Optional[dict] = None   # the spec's type table, read when a result is first checked
         self.resolver = Resolver(model, registry, prim_faults, self.values)
         self.narrator = Narrator(model)
         self.steps = _PrintedSteps()
@@ -335,6 +336,15 @@ class _Sim:
         rec.result = res
         owner, name = self.model.functions[rec.fc]
         prim = self.registry.lookup(name, owner)
+        rty = self.model.fn_types.get(rec.fc)
+        if not res.failed and rty is not None and (res.value is not None or rty == "bool"):
+            # a value of another type than the declaration's is a bug of the binding, as in a run
+            # (read as it is, it would stop the recipe that reads it, silently)
+            if self.types is None:
+                self.types = type_table(self.model.spec)
+            why = misfit(res.value, rty, self.types)
+            if why is not None:
+                raise primitive_result_error(self.model, rec.fc, prim, list(rec.args), res.value, rty, why)
         rec.covering = classify(prim.outcomes, res, self.model.fn_types.get(rec.fc)) if prim is not None else []
         rec.outcome = rec.covering[0] if len(rec.covering) >= 1 else None
         self._answer(f, rec, result_term(self.model, self.values, rec.fc, res), {})

@@ -252,7 +252,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
         res.mismatches.append(f"the robot produced results no declared outcome covers: {shown} — the abstract "
                               "model misses them (an unsound abstraction; see roar-verify conform)")
     if setup.compare and binding.abstract is not None:
-        _compare(job, res, run, t0)
+        _compare(job, res, run, t0, on_progress)
     res.seconds = time.perf_counter() - t0
     return res
 
@@ -261,8 +261,10 @@ def _robot_bad(node) -> Optional[str]:
     return node.bad[0][1] if node.bad else None
 
 
-def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
-    """The abstract model's verdicts next to the robot's, and why they differ."""
+def _compare(job: Job, res: JobResult, run: RobotRun, t0: float,
+             on_progress: Optional[Callable[[dict], None]] = None) -> None:
+    """The abstract model's verdicts next to the robot's, and why they differ. Its search reports
+    its progress as the robot's did, marked as the abstract model's (it can be the longer one)."""
     from ..clf.query import with_big_stack
     ajob = copy.copy(job)
     ajob.robot = None
@@ -275,7 +277,13 @@ def _compare(job: Job, res: JobResult, run: RobotRun, t0: float) -> None:
     if budget.max_seconds is not None:
         budget.max_seconds = max(1.0, budget.max_seconds - (time.perf_counter() - t0))
     ajob.budget = budget
-    ares = with_big_stack(run_roar_job, ajob, None)
+    progress = None if on_progress is None else (lambda st: on_progress({**st, "phase": "abstract model"}))
+    ares = with_big_stack(run_roar_job, ajob, progress)
+    g = ares.graph
+    if job.budget.max_seconds is not None and g is not None and (g.stop_reason or "").startswith("time budget of "):
+        # (its bound was what the robot's search left of the job's: say the job's, and what was left)
+        g.stop_reason = (f"time budget of {job.budget.max_seconds:g} s reached (the job's; {budget.max_seconds:.1f} s "
+                         f"of it was left after the robot's search)")
     run.abstract = ares
     seen = run.tree.outcomes_seen
     model = res.roar[0]

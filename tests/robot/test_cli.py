@@ -70,6 +70,8 @@ def test_simulate_refuses_bad_input_with_a_location(cli, capsys, tmp_path):
     assert code == 2 and f"{bad}:2:" in err and "Traceback" not in err
     code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--fault", "door_open")
     assert code == 2 and "not a fault point of scenario 'door'" in err and "door_closes" in err
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--fault", "door_close")
+    assert code == 2 and "--fault 'door_close' (did you mean 'door_closes'?)" in err
     # a spec without a functional-layer module, and one whose module has no robot binding
     code, out, err = cli(capsys, "simulate", MODELS / "faulty" / "mutual_make.roar", "-s", SCEN / "clear.toml",
                          "-r", "a::x == true")
@@ -169,3 +171,27 @@ def test_a_binding_that_raises_is_a_located_error_on_the_robot(cli, capsys, tmp_
     # door_nav.roar:33:20 is the call `compute_path(gx, gy)` in the planner's recipe
     assert f"error: {spec}:33:20: primitive 'planner::compute_path' raised RuntimeError: planner crashed" in err
     assert "called as compute_path(9, 3)" in err and "Traceback" not in err
+
+
+def test_a_binding_that_returns_another_type_is_a_located_error_on_the_robot(cli, capsys, tmp_path):
+    """As in `run`: a robot primitive answering a value of another type than its declaration's
+    (a string where a bool is declared) is a bug of the binding, located at the call; read as it
+    was, the recipe reading it stopped silently until the horizon."""
+    import shutil
+    spec = tmp_path / "door_nav.roar"
+    shutil.copy(DOOR, spec)
+    (tmp_path / "door_nav.py").write_text(
+        "import importlib.util\n"
+        f"_s = importlib.util.spec_from_file_location('door_nav_base', {str(MODELS / 'door_nav.py')!r})\n"
+        "_m = importlib.util.module_from_spec(_s)\n_s.loader.exec_module(_m)\n"
+        "registry = _m.registry\n"
+        "def robot_registry():\n"
+        "    reg = _m.robot_registry()\n"
+        "    def sloppy(gx, gy):\n"
+        "        return 'yes'\n"
+        "    reg.register('compute_path', sloppy, outcomes=_m.OUTCOMES['compute_path'], replace=True)\n"
+        "    return reg\n")
+    code, out, err = cli(capsys, "simulate", spec, "-s", SCEN / "door.toml", "-r", DOOR_REQ)
+    assert code == 2, out
+    assert f"error: {spec}:33:20: primitive 'planner::compute_path' returned 'yes', but it is declared to return" \
+        in err and "Traceback" not in err

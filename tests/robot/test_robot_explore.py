@@ -407,3 +407,22 @@ def test_check_prints_the_abstraction_and_the_comparison(roar_cli):
     data = json.loads(out)
     assert data[0]["backend"] == "robot" and data[0]["robot"]["abstraction"]["exact"] is True
     assert data[0]["robot"]["robot_states"] > 1
+
+
+def test_the_comparison_search_reports_its_progress_as_its_own(monkeypatch):
+    """The abstract model's search (often the longer one) reports progress through the job's
+    callback, each report marked as the abstract model's (the command line shows it so)."""
+    import roar_formal.verify.robot as vr
+    real = vr.run_roar_job
+    handed: list = []
+
+    def spy(job, on_progress):
+        handed.append(on_progress)
+        return real(job, on_progress)
+
+    monkeypatch.setattr(vr, "run_roar_job", spy)
+    seen: list = []
+    run_job(_job(DATA / "bump_wall.job.toml", compare=True), on_progress=seen.append)
+    assert len(handed) == 1 and handed[0] is not None
+    handed[0]({"states": 7, "transitions": 9})
+    assert seen[-1] == {"states": 7, "transitions": 9, "phase": "abstract model"}
