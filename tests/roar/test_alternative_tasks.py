@@ -124,14 +124,16 @@ def test_the_search_goes_on_through_a_task_run():
         if not chain:   # (a schedule where the ptu is free when the inspector asks)
             continue
         met += 1
-        # the search ends at the request from outside, or finds the holder's emitter aborted meanwhile
-        # (the tasks are then released to the waiting request)
-        assert chain[-1].text.endswith(("is a request from outside: the conflict cannot be resolved",
-                                        "was aborted: waiting for its tasks to be released")), chain[-1].text
         assert left == []   # no search is left half-way
+        if chain[-1].text.endswith("was aborted: waiting for its tasks to be released"):
+            continue   # (the holder's emitter was aborted meanwhile: its tasks go to the waiting request)
+        assert chain[-1].text.endswith("is a request from outside: the conflict cannot be resolved"), chain[-1].text
         if any(e.agent == "sensor" for e in chain):   # the holder was aim's ensure: R2 is the task run
-            through_run += 1
             assert [e.agent for e in chain] == ["ptu", "sensor", "mission"]
+            if r.outcome == "success":   # (aim released the ptu while the search went on: R4 took it)
+                assert any(e.text.startswith("R4: tasks point") for e in r.events), seed
+                continue
+            through_run += 1
             assert r.outcome == "failure"
             assert any(x.startswith("concurrency: task ptu::point is held") for x in r.error_context)
     assert met >= 8 and through_run >= 2, (met, through_run)

@@ -428,9 +428,9 @@ def _from_state(model, facts: str):
 def test_a_released_request_lifts_the_pause_of_its_ending_activation():
     """An activation killed (its constraint failed: the crash) runs its end block; its emitter
     pauses it, then aborts its request (the emitter's own recipe failed): the abort's kill is a
-    repeat (kill_again), and no continue can come any more. The release lifts the pause
-    (released_unpause), with crashes (tests found it on models/conflict.roar, ptu crashing) and
-    without: a trial's spec reached it with a local failure alone (a false deadlock before)."""
+    repeat (kill_again), and no continue can come any more: the abort's kill lifts the emitter's
+    pause, with crashes (tests found the race on models/conflict.roar, ptu crashing) and without
+    (a trial's spec reached it with a local failure alone: a false deadlock before)."""
     for crashes in (Crashes(("cam",)), None):
         m = compile_spec(load_spec(SPEC), DONE, crashes=crashes)
         end = next(s.const for s in m.sites.values() if s.recipe == "with_cam" and s.text == "set looked true")
@@ -445,13 +445,13 @@ def test_a_released_request_lifts_the_pause_of_its_ending_activation():
                  f"hs r1 (h_abort i) vnil vnil (vcons (vtsk t_tracker_track) vnil) vnone * "
                  f"act i r1 t_tracker_track r_tracker_track_with_cam z * "
                  f"ending i (k_cst {c_cam} (vcons (vunavail a_cam) vnil)) * "
-                 f"ctl i m_run (ccons {end} (ccons s_done cnil)) vnil * rstat i (pz z tt)")
+                 f"ctl i m_run (ccons {end} (ccons s_done cnil)) vnil * rstat i (pz z tt) * kill i k_abort")
         prog = _from_state(m, facts)
         ctx = prog.start_context(next(d for d in prog.sig.directives if hasattr(d, "start")).start)
         rules: list = []
         prog.run(ctx, on_step=lambda step, _c: rules.append(step.rule))
         left = sorted(prog.show(f) for _m, f, _n in ctx.facts())
-        assert rules[0] == "released_unpause" and "aborted" in rules, rules
+        assert rules[0] == "kill_again" and "aborted" in rules, rules
         # the end block ran (it sets looked), the tasks are released, nothing of the request is left
         assert "contains v_tracker_looked (vbool tt)" in left and "mask a_tracker vnil" in left, left
         assert not [f for f in left if f.startswith(("ctl ", "rq ", "hs "))], left

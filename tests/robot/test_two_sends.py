@@ -21,24 +21,28 @@ REQUEST = "mission::delivered == true"
 
 
 def test_a_second_request_received_first_replays_on_the_model(roar_cli, tmp_path):
-    trace = tmp_path / "s4.jsonl"
-    code, out, err = roar_cli("simulate", DATA / "fetch.roar", "-s", SCENARIO, "-r", REQUEST, "--seed", "4",
-                              "--trace", trace)
-    assert code == 0, err
-    records = [json.loads(x) for x in trace.read_text(encoding="utf-8").splitlines()[1:]]
-    # the case at issue: a recv takes the later of two requests still sent
-    sent: list = []
-    later_first = False
-    for r in records:
-        for f in r.get("produced", []):
-            if f.startswith("rs ") and f.endswith(" s_sent") and f not in r.get("consumed", []):
-                sent.append(f)
-        if r.get("rule") == "recv":
-            got = next(f for f in r["consumed"] if f.endswith(" s_sent"))
-            if got in sent:   # (R0 is sent by the start state)
-                later_first = later_first or sent.index(got) > 0
-                sent.remove(got)
-    assert later_first
+    # the case at issue: a recv takes the later of two requests still sent (the first seed whose
+    # schedule does so; seed 4 did when the framework's rules were last changed)
+    for seed in range(4, 24):
+        trace = tmp_path / f"s{seed}.jsonl"
+        code, out, err = roar_cli("simulate", DATA / "fetch.roar", "-s", SCENARIO, "-r", REQUEST, "--seed", str(seed),
+                                  "--trace", trace)
+        assert code == 0, err
+        records = [json.loads(x) for x in trace.read_text(encoding="utf-8").splitlines()[1:]]
+        sent: list = []
+        later_first = False
+        for r in records:
+            for f in r.get("produced", []):
+                if f.startswith("rs ") and f.endswith(" s_sent") and f not in r.get("consumed", []):
+                    sent.append(f)
+            if r.get("rule") == "recv":
+                got = next(f for f in r["consumed"] if f.endswith(" s_sent"))
+                if got in sent:   # (R0 is sent by the start state)
+                    later_first = later_first or sent.index(got) > 0
+                    sent.remove(got)
+        if later_first:
+            break
+    assert later_first, "no schedule received the later of two sent requests first"
     code, out, err = roar_cli("replay", trace, "--model", DATA / "fetch.roar")
     assert code == 0, out + err
     assert "every step is a step of the model" in out
