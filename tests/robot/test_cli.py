@@ -149,9 +149,8 @@ def test_conform_with_no_primitive_call_checked_nothing_and_says_so(cli, capsys)
     assert code == 1 and "nothing checked: no run called a primitive" in out
 
 
-def test_a_binding_that_raises_is_a_located_error_on_the_robot(cli, capsys, tmp_path):
-    """As in `run`: an exception in a robot primitive is a bug of the binding, reported at the
-    call with the primitive's name, never a failure the recipe retries."""
+def _door_with_compute_path(tmp_path, body: str):
+    """door_nav.roar next to a binding whose robot ``compute_path(gx, gy)`` runs ``body``."""
     import shutil
     spec = tmp_path / "door_nav.roar"
     shutil.copy(DOOR, spec)
@@ -162,10 +161,17 @@ def test_a_binding_that_raises_is_a_located_error_on_the_robot(cli, capsys, tmp_
         "registry = _m.registry\n"
         "def robot_registry():\n"
         "    reg = _m.robot_registry()\n"
-        "    def broken(gx, gy):\n"
-        "        raise RuntimeError('planner crashed')\n"
-        "    reg.register('compute_path', broken, outcomes=_m.OUTCOMES['compute_path'], replace=True)\n"
+        "    def replaced(gx, gy):\n"
+        f"        {body}\n"
+        "    reg.register('compute_path', replaced, outcomes=_m.OUTCOMES['compute_path'], replace=True)\n"
         "    return reg\n")
+    return spec
+
+
+def test_a_binding_that_raises_is_a_located_error_on_the_robot(cli, capsys, tmp_path):
+    """As in `run`: an exception in a robot primitive is a bug of the binding, reported at the
+    call with the primitive's name, never a failure the recipe retries."""
+    spec = _door_with_compute_path(tmp_path, "raise RuntimeError('planner crashed')")
     code, out, err = cli(capsys, "simulate", spec, "-s", SCEN / "door.toml", "-r", DOOR_REQ)
     assert code == 2, out
     # door_nav.roar:33:20 is the call `compute_path(gx, gy)` in the planner's recipe
@@ -177,20 +183,7 @@ def test_a_binding_that_returns_another_type_is_a_located_error_on_the_robot(cli
     """As in `run`: a robot primitive answering a value of another type than its declaration's
     (a string where a bool is declared) is a bug of the binding, located at the call; read as it
     was, the recipe reading it stopped silently until the horizon."""
-    import shutil
-    spec = tmp_path / "door_nav.roar"
-    shutil.copy(DOOR, spec)
-    (tmp_path / "door_nav.py").write_text(
-        "import importlib.util\n"
-        f"_s = importlib.util.spec_from_file_location('door_nav_base', {str(MODELS / 'door_nav.py')!r})\n"
-        "_m = importlib.util.module_from_spec(_s)\n_s.loader.exec_module(_m)\n"
-        "registry = _m.registry\n"
-        "def robot_registry():\n"
-        "    reg = _m.robot_registry()\n"
-        "    def sloppy(gx, gy):\n"
-        "        return 'yes'\n"
-        "    reg.register('compute_path', sloppy, outcomes=_m.OUTCOMES['compute_path'], replace=True)\n"
-        "    return reg\n")
+    spec = _door_with_compute_path(tmp_path, "return 'yes'")
     code, out, err = cli(capsys, "simulate", spec, "-s", SCEN / "door.toml", "-r", DOOR_REQ)
     assert code == 2, out
     assert f"error: {spec}:33:20: primitive 'planner::compute_path' returned 'yes', but it is declared to return" \
