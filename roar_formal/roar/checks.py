@@ -53,9 +53,6 @@ class CheckError(TypeError_):
 class SpecCheckError(ErrorList, TypeError_):
     """Every problem of a spec: the first as the message, the others as notes; all in ``errors``."""
 
-    def __init__(self, errors: list[CheckError]):
-        super().__init__(errors)
-
 
 def _key(e: CheckError):
     p = e.pos or Pos("", 0, 0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-from ..errors import RoarError
+from ..errors import RoarError, did_you_mean
 from ..roar.compile import compile_spec
 from ..roar.spec import load_spec
 from ..roar.run import parse_fault
@@ -32,7 +32,6 @@ def split_faults(names: list[str], scenario, model=None) -> tuple[list[str], lis
         except RoarError:
             f = None
         if f is None or (model is not None and f.name not in functions):
-            from ..errors import did_you_mean
             name = f.name if f is not None else n
             hint = did_you_mean(name, sorted(known | functions))
             raise RoarError(f"--fault {n!r}{hint}: not a fault point of scenario '{scenario.name}' "

@@ -520,7 +520,7 @@ _UNUSED_MESSAGE = "--fault {names}: no such call happened in this run (check the
 def _check_fault_names(faults: Sequence["Fault"], spec: "AgentSpec", model: "CompiledModel") -> None:
     """A fault naming no function of the spec (``f`` or ``agent::f``) cannot match a call: refused
     before the run, with the closest name."""
-    from ..roar.props import did_you_mean
+    from ..errors import did_you_mean
     known: dict[str, None] = {}
     pairs = list(spec.functions()) + [(o, n) for o, n in model.functions.values()]
     for owner, name in pairs:
@@ -567,7 +567,7 @@ def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple)
     out: list[str] = []
     for p in properties:
         if p not in allowed:
-            from ..roar.props import did_you_mean
+            from ..errors import did_you_mean
             raise RoarError(f"unknown property {p!r}{did_you_mean(str(p), allowed)}; expected one of: "
                             f"{', '.join(allowed)}", _caller_pos())
         if p not in out:

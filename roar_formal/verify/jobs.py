@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
-from ..errors import ErrorList, Pos, RoarError, collecting
+from ..errors import ErrorList, Pos, RoarError, collecting, did_you_mean
 from ..explore.search import Budget
 
 PROPERTIES = ("deadlock", "livelock", "sequential-achievement", "exclusive-writes", "invariant", "robot-invariant",
@@ -155,7 +155,6 @@ def _expect_keys(d: dict, allowed: set, where: str, path: Path) -> None:
                         f"[\"file.toml\"]" + ("; this file looks like one: a folder of jobs should not hold it"
                                                if "check" in d else "") + ")")
             if not hint:
-                from ..roar.props import did_you_mean
                 hint = did_you_mean(str(k), sorted(allowed))
                 near = did_you_mean(str(k), BOUND_KEYS) if not hint and where == "a job file" else ""
                 if k in BOUND_KEYS and where == "a job file":
@@ -230,7 +229,7 @@ def _bound(b: dict, key: str, path: Path, expected: str, low: float, integer: bo
 def load_properties(path: Path, into: Optional[PropertySpec] = None) -> PropertySpec:
     spec = into or PropertySpec()
     d = _load_toml(path)
-    from ..roar.props import did_you_mean, looks_like_spec, parse_formula
+    from ..roar.props import looks_like_spec, parse_formula
     _expect_keys(d, PROPERTY_KEYS, "a property file", path)
     if "check" in d:
         for p in _typed(d, "check", list, path, "a property file"):
@@ -1015,7 +1014,6 @@ def job_for_model(path: Path, request: Optional[str] = None, properties: Optiona
         raise RoarError(f"{path}: --request is for a ROAR spec, not a .clf program")
     if not path.exists():
         raise RoarError(f"{path}: no such file or folder")
-    from ..roar.props import did_you_mean
     given = PropertySpec()
     for f in property_files:
         f = Path(f)

@@ -11,7 +11,7 @@ from ..clf.parser import parse_expr
 from ..clf.forward import enabled_steps
 from ..clf.program import Program
 from ..clf.signature import Elaborator, ExecDirective, Signature, extend_signature
-from ..errors import RoarError
+from ..errors import RoarError, did_you_mean
 from .jobs import Job
 from ..explore.system import Options
 
@@ -99,15 +99,19 @@ def spec_properties(job: Job, model):
     return SpecChecks(job.props, model)
 
 
-def mark_defaults(props, verdicts: dict, roar: bool = False) -> None:
-    """Say which properties a job checked by default (a job on a spec that names none), and on a
-    spec, when livelock holds by the default progress (any request finishing), what that hides."""
+def mark_defaults(props, verdicts: dict) -> None:
+    """Say which properties a job checked by default (a job on a spec that names none)."""
     if getattr(props, "defaulted", False):
         for v in verdicts.values():
             if "(a default property)" not in v.message:
                 v.message += " (a default property)"
+
+
+def note_default_progress(props, verdicts: dict) -> None:
+    """On a spec, a livelock that holds by the default progress (any request finishing) says so,
+    and what that progress hides."""
     v = verdicts.get("livelock")
-    if roar and v is not None and v.status == "holds" and not props.progress and not props.spec_progress:
+    if v is not None and v.status == "holds" and not props.progress and not props.spec_progress:
         v.message += (" (progress: any request of any agent finishing, as no [livelock] progress is given; a "
                       "retry whose sub-requests succeed counts as progress: to check that the job's request "
                       "finishes, give progress = [\"request R0 finished\"] in a property file, e.g. with "
@@ -120,7 +124,6 @@ def check_progress_rules(props, program, spec: bool) -> None:
     if "livelock" not in props.check:
         return
     import fnmatch
-    from ..roar.props import did_you_mean
     names = [t.name for t in program.templates]
     for pat in props.progress:
         if not any(fnmatch.fnmatchcase(n, pat) for n in names):

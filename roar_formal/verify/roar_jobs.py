@@ -13,7 +13,8 @@ from ..explore.search import rss_mb
 from ..explore.system import Options
 from .cluster import cluster_note
 from .explorers import make_explorer, run_search
-from .models import make_accept, make_never, mark_defaults, reduction_options, roar_setup, spec_properties
+from .models import (make_accept, make_never, mark_defaults, note_default_progress, reduction_options, roar_setup,
+                     spec_properties)
 from .results import JobResult
 from .searching import VISITED_NOTE, mark_reduction
 from .symmetries import mark_symmetry, roar_symmetry, symmetric
@@ -83,7 +84,8 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
                     return (f"{w[0]} is written by the where clauses of two live constraints: "
                             f"{' and '.join(w[1])}") if w else None
                 verdicts[p] = check_states(graph, p, bad)
-        mark_defaults(props, verdicts, roar=True)
+        mark_defaults(props, verdicts)
+        note_default_progress(props, verdicts)
         return verdicts
 
     def explore(opts: Options):

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 from ..errors import Pos, RoarError
-from .models import make_never, mark_defaults, roar_setup, spec_properties
+from .models import make_never, mark_defaults, note_default_progress, roar_setup, spec_properties
 from .results import JobResult, counterexample_steps
 from .roar_jobs import run_roar_job
 from .searching import search_rounds
@@ -214,7 +214,8 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
                 verdicts[p] = check_states(graph, p, bad)
             elif p == "robot-invariant":
                 verdicts[p] = check_states(graph, p, lambda sid: _robot_bad(states[sid].node))
-        mark_defaults(props, verdicts, roar=True)
+        mark_defaults(props, verdicts)
+        note_default_progress(props, verdicts)
         return verdicts
 
     graph, verdicts = search_rounds(job, t0, explorer, decide)
