@@ -234,6 +234,13 @@ class _Build(Transformer):
 
     def query(self, c):
         kw, d, e, l, a, goal = c
+        head = goal
+        while isinstance(head, s.App):
+            head = head.fn
+        if head is not goal and isinstance(head, (s.One, s.Num)):
+            # `#query * 1 * 1 1 a.`: a fifth bound read as the type's head (Celf's parser refuses it too)
+            raise SyntaxError_("a #query has four bounds (depth, expected solutions, solutions to look "
+                               "for, attempts) and then its type; this one has a fifth bound", head.pos)
         # Celf checks the bounds when the query runs, after its type (see query.run_query)
         return s.Query(_tpos(kw), _bound(d), _bound(e), _bound(l), _bound(a), goal,
                        bounds_pos=tuple(_tpos(b) for b in (d, e, l, a)))

@@ -144,7 +144,7 @@ class _Setup:
         """The enabled steps of ``state``, reached by ``path``: (choice, agent, outcome label or None)."""
         out = self.moves.get(path)
         if out is None:
-            out = [(c, self.system.agent_of(c, state), self.outcome_of(c.rule))
+            out = [(c, _agent_label(self.system, c, state), self.outcome_of(c.rule))
                    for c in self.system.program.steps(state)]
             self._remember(self.moves, path, out)
         return out
@@ -220,7 +220,7 @@ class _Lockstep:
         if out is None:
             choices = [] if rstate.node.at_horizon else self.system.program.steps(rstate.ctx)
             if choices:
-                out = [(c, self.system.agent_of(c, rstate.ctx), None) for c in choices]
+                out = [(c, _agent_label(self.system, c, rstate.ctx), None) for c in choices]
             else:
                 out = [(succ, ROBOT_GROUP, _robot_label(succ)) for succ in self.system.successors(rstate)]
             _Setup._remember(self.moves, path, out)
@@ -322,6 +322,17 @@ def _printed(step: Any) -> tuple[list, list]:
     from ..clf.terms import Root
     return ([show(f) for _m, f in step.consumed if type(f) is Root],
             [show(f) for _m, f in step.produced if type(f) is Root])
+
+
+def _agent_label(system: Any, choice: Any, state: Any) -> str:
+    """The agent taking a step, as hypothesis draws and prints it; "framework" for the steps no agent
+    takes (the functional layer's answer to a call its aborted caller no longer waits for)."""
+    who = system.agent_of(choice, state)
+    return who if who in system.model.agents.values() else FRAMEWORK_GROUP
+
+
+#: the agent label of steps no agent takes
+FRAMEWORK_GROUP = "framework"
 
 
 def _robot_label(succ: Any) -> str:

@@ -8,6 +8,7 @@ it does not depend on how far shrinking went).
 import importlib.util
 import inspect
 import re
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, Phase, settings
@@ -159,3 +160,29 @@ def test_a_mistake_in_a_never_predicate_is_located_where_it_is_written(examples)
     col = text.index("gripper::holdin") + 1 + len('        ')
     assert "has no variable 'holdin' (did you mean 'holding'?)" in e.value.message
     assert (e.value.pos.file, e.value.pos.line, e.value.pos.col) == (__file__, line, col)
+
+
+def test_steps_no_agent_takes_are_drawn_as_the_framework():
+    """An aborted activation's pending call still answers; the step that drops the answer is no
+    agent's: hypothesis draws it under "framework", not under a rule name posing as an agent.
+    Every reachable state's steps, as the machine offers them, are walked (no luck involved)."""
+    class Aborting(RoarMachine):
+        spec = Path(__file__).parent / "data" / "abort_pending_call.roar"
+        request = "planner::done == true"
+
+    setup = Aborting()._s
+    by_agent: dict = {}
+    seen = {setup.system.key(setup.start)}
+    todo = [((), setup.start)]
+    while todo:
+        path, state = todo.pop()
+        for k, (choice, agent, outcome) in enumerate(setup.enabled(path, state)):
+            if outcome is None:
+                by_agent.setdefault(agent, set()).add(choice.rule)
+            nxt = setup.successor(path, state, k)[0]
+            key = setup.system.key(nxt)
+            if key not in seen:
+                seen.add(key)
+                todo.append((path + (k,), nxt))
+    assert set(by_agent) == {"planner", "w", "framework"}
+    assert by_agent["framework"] == {"drop_result"}
