@@ -74,7 +74,9 @@ class Robot:
         self._next_scan = 0.0
         self.last_scan_time = -math.inf
         self._points: Optional[list] = None         # the latest scan as world points (cached)
-        self._ahead: Optional[bool] = None          # does it show an obstacle on the path ahead (cached)
+        self._ahead = None                          # the obstacle the scan shows on the path ahead, or False (cached)
+        self.blocked_why: dict = {}                 # why the follower last gave up (FollowPath's result says it)
+        self._waiting_for = (math.nan, math.nan)    # the obstacle the base waits for
         self.trajectory: list = []
         self.pan: list = []                         # (time, angle, target) of the pan unit, when there is one
         self._next_control = 0.0
@@ -186,6 +188,7 @@ class Robot:
         if self._ahead:
             if self.follow_state != "waiting":
                 self._progress = (self.time, f.remaining(pose))
+            self._waiting_for = self._ahead
             self.follow_state = "waiting"
             self.world.base.set_wheel_speeds(0.0, 0.0)
             return
@@ -205,31 +208,38 @@ class Robot:
         t0, best = self._progress
         if self.follow_state == "waiting":   # stopped on purpose: blocked only when it lasts
             if self.time - t0 > WAIT_LIMIT:
+                ox, oy = self._waiting_for
+                self.blocked_why = {"why": "obstacle ahead", "ox": ox, "oy": oy, "waited": self.time - t0}
                 self.follow_state = "blocked"
                 self.follower = None
                 self.world.base.set_wheel_speeds(0.0, 0.0)
         elif rem < best - BLOCKED_PROGRESS:
             self._progress = (self.time, rem)
         elif self.time - t0 > BLOCKED_WINDOW:
+            self.blocked_why = {"why": "no progress", "waited": self.time - t0}
             self.follow_state = "blocked"
             self.follower = None
             self.world.base.set_wheel_speeds(0.0, 0.0)
 
-    def _obstacle_ahead(self, pose) -> bool:
-        """Does the latest scan show something on the path within SAFETY_DISTANCE ahead?"""
+    def _obstacle_ahead(self, pose):
+        """The point of the latest scan closest to the robot on the path within SAFETY_DISTANCE
+        ahead (closer to a point of the path than the robot's radius and a 5 cm margin), or False."""
         pts = self.scan_points()
         if not pts or self.path is None:
             return False
         x, y, th = pose
         radius = self.scenario.robot.radius
         ahead = [p for p in self._path_ahead(pose, SAFETY_DISTANCE)]
+        best = None
         for px, py in pts:
-            if math.hypot(px - x, py - y) > SAFETY_DISTANCE + radius:
+            d = math.hypot(px - x, py - y)
+            if d > SAFETY_DISTANCE + radius or (best is not None and d >= best[0]):
                 continue
             for ax, ay in ahead:
                 if math.hypot(px - ax, py - ay) < radius + 0.05:
-                    return True
-        return False
+                    best = (d, px, py)
+                    break
+        return False if best is None else (best[1], best[2])
 
     def _path_ahead(self, pose, dist: float, step: float = 0.1) -> list:
         """Points every ``step`` along the current path from the pose's nearest point, ``dist`` long."""
@@ -361,7 +371,7 @@ class FollowPath(Activity):
         if st == "arrived":
             return ok(True, "arrived", x=x, y=y, seconds=robot.time - self.t0)
         if st == "blocked":
-            return failed("blocked", False, x=x, y=y, seconds=robot.time - self.t0)
+            return failed("blocked", False, x=x, y=y, seconds=robot.time - self.t0, **robot.blocked_why)
         return None
 
     def on_timeout(self, robot) -> CallResult:

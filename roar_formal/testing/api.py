@@ -858,6 +858,8 @@ class RunReport:
                     f"robot at ({x:.2f}, {y:.2f}), heading {th * 57.29577951308232:.0f}°")
             for e in self.error_context:
                 out.add(f"  error context: {e}")
+            for line in _unsuccessful_calls(res.calls):
+                out.add(line, wrap=True)
             for c in res.uncovered():
                 out.add(f"  warning: call {c.n} {c.function}({', '.join(map(str, c.args))}) at t = {c.t_end:.2f} s "
                         f"returned {c.result.as_json()}, which no declared outcome covers", style="yellow")
@@ -1029,6 +1031,32 @@ class Counterexample:
 
     def __repr__(self) -> str:
         return f"<{self.prop} counterexample: {self.kind} of {len(self)} steps>"
+
+
+def _unsuccessful_calls(calls: list) -> list[str]:
+    """The robot calls that failed, a line per function and status (how many,
+    and the last one with why it ended so, when the robot says): a spec that waits for a
+    primitive the robot keeps refusing shows why in its run, not only as a false in the table."""
+    groups: dict = {}
+    for c in calls:
+        if c.result is not None and c.result.failed:   # (a read that answers false did not fail)
+            groups.setdefault((c.agent, c.function, c.result.status), []).append(c)
+    if not groups:
+        return []
+    out = ["  calls that did not succeed on the robot:"]
+    for (agent, fn, status), cs in groups.items():
+        last = cs[-1]
+        d = last.result.detail
+        name = fn if "::" in fn else f"{agent}::{fn}"
+        why = ""
+        if d.get("why") == "obstacle ahead":
+            why = (f": the safety stop saw an obstacle at ({d.get('ox', float('nan')):.2f}, "
+                   f"{d.get('oy', float('nan')):.2f}) on the path ahead and waited {d.get('waited', 0):.1f} s")
+        elif d.get("why") == "no progress":
+            why = f": the base made no progress for {d.get('waited', 0):.1f} s (pushing against something?)"
+        times = f"{len(cs)} times, the last" if len(cs) > 1 else "once,"
+        out.append(f"    {name} {status}: {times} at t = {last.t_end:.2f} s{why}")
+    return out
 
 
 class Exploration:

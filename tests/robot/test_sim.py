@@ -94,6 +94,39 @@ def test_a_robot_snapshot_continues_bit_for_bit():
     assert again.trajectory == r.trajectory and again.follow_state == r.follow_state
 
 
+def test_a_base_that_gives_up_waiting_says_for_what():
+    """The safety stop halts the base at the closed door; after WAIT_LIMIT it gives up, and the
+    follow's result says why and where the obstacle was (the door's face, at x = 6)."""
+    from roar_formal.robot.robot import WAIT_LIMIT, FollowPath
+    _spec, _model, _binding, sc = setup("door_nav.roar", DOOR_REQ, "door.toml")
+    r = Robot(sc, seed=2, faults=["door_closes"])
+    follow = FollowPath(r.plan_to((9.0, 3.0)))
+    assert follow.start(r) is None
+    res = None
+    while res is None and r.time < 30:
+        r.step()
+        res = follow.tick(r)
+    assert res is not None and res.failed and res.status == "blocked"
+    assert res.detail["why"] == "obstacle ahead"
+    assert abs(res.detail["ox"] - 5.95) < 0.1 and abs(res.detail["oy"] - 3.0) < 0.6
+    assert WAIT_LIMIT <= res.detail["waited"] < WAIT_LIMIT + 0.1
+    assert r.world.base.pose[0] < 6.0 - sc.robot.radius   # (it stopped in front of the door)
+
+
+def test_a_run_on_the_robot_lists_the_calls_that_failed():
+    """The end of a robot run counts the calls that failed, by function and status."""
+    from roar_formal.testing import load_spec
+    run = load_spec(MODELS / "door_nav.roar").run(DOOR_REQ, scenario=SCEN / "door.toml", faults=["door_closes"])
+    failed = [c for c in run.robot.calls if c.result.failed]
+    assert failed and {c.function for c in failed} == {"planner::compute_path"}
+    text = run.format()
+    assert "  calls that did not succeed on the robot:\n" in text
+    assert (f"    planner::compute_path no_path: {len(failed)} times, the last at t = {failed[-1].t_end:.2f} s"
+            in text)
+    # a read answering false did not fail: path_blocked() and at_goal() are not listed
+    assert "path_blocked" not in text.split("calls that did not succeed")[1]
+
+
 # ---------------------------------------------------------------- the door scenario
 
 
