@@ -53,6 +53,13 @@ def _variant(t: Node, seen: dict):
     raise _NotTabled
 
 
+#: the deepest nesting of goals a proof search takes: a goal costs about eight Python frames, and
+#: ``query.with_big_stack`` allows 200,000, so the search stops itself (SearchLimit, located by its
+#: caller) before the interpreter does (a RecursionError deep in nested generators is fragile: a
+#: second one while the first unwinds kills the process)
+MAX_DEPTH = 20000
+
+
 class SearchLimit(Exception):
     """Raised when the proof search exceeds its depth bound."""
 
@@ -61,7 +68,7 @@ class Backward:
     """Proof search over a program's clauses and a context of hypotheses."""
 
     def __init__(self, program, seed: Optional[int] = 0, monad_depth: Optional[int] = None,
-                 max_depth: int = 100_000, fair: bool = False):
+                 max_depth: int = MAX_DEPTH, fair: bool = False):
         self.program = program
         self.u = Unifier()
         self.hyps: list[Hyp] = []

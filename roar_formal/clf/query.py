@@ -134,10 +134,18 @@ def run_query(program: Program, q: QueryDirective, seed: int = 0, emit: Callable
                 res.answers.append(answer)
                 if look is not None and count >= look:
                     break
-        except SearchLimit as exc:
-            raise QueryError(f"query aborted: {exc}", q.pos) from None
+        except (SearchLimit, RecursionError) as exc:
+            # raised after the handler: the error then keeps no traceback of the deep search (a
+            # chain of nested generators that only the cyclic collector would free, slowly)
+            aborted = str(exc) if isinstance(exc, SearchLimit) else "the proof search recursed too deeply"
         except BuiltinError as exc:
             raise BuiltinError(exc.message, exc.pos or q.pos, exc.notes) from None
+        else:
+            aborted = None
+        if aborted is not None:
+            raise QueryError(f"query aborted: {aborted} (after {_plural(count, 'solution')}): a depth-first search "
+                             f"that does not end (Celf's would not either)? Order the clauses or premises so that "
+                             f"it does", q.pos)
         res.solutions += count
         counts.append(count)
         if q.expected == "*":
@@ -220,6 +228,12 @@ def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[
         steps, _quiescent = program.run(ctx, bound, seed=seed, fair=fair, on_step=on_step)
     except BuiltinError as exc:
         raise BuiltinError(exc.message, exc.pos or d.pos, exc.notes) from None
+    except (SearchLimit, RecursionError) as exc:
+        steps = None
+        aborted = str(exc) if isinstance(exc, SearchLimit) else "the proof search recursed too deeply"
+    if steps is None:   # (raised after the handler: see run_query)
+        raise QueryError(f"#{kw.lower()} aborted after {res.steps} steps: a premise's {aborted} (a depth-first "
+                         f"search that does not end?)", d.pos)
     res.steps = steps
     res.final = ctx
     if not show_each:

@@ -21,14 +21,16 @@ class Unifier:
 
     def __init__(self) -> None:
         self.trail: list = []
-        self.postponed: list[tuple[Node, Node]] = []
+        # a tuple, replaced rather than changed: a mark keeps the one it saw, and undoing restores
+        # it whole (a retry that solved an equation under a binding undone must not lose it)
+        self.postponed: tuple = ()
 
     # -- trail ---------------------------------------------------------
-    def mark(self) -> tuple[int, int]:
-        return len(self.trail), len(self.postponed)
+    def mark(self) -> tuple:
+        return len(self.trail), self.postponed
 
-    def undo(self, mark: tuple[int, int]) -> None:
-        n, m = mark
+    def undo(self, mark: tuple) -> None:
+        n, postponed = mark
         trail = self.trail
         while len(trail) > n:
             entry = trail.pop()
@@ -36,7 +38,7 @@ class Unifier:
                 entry.ref = None
             else:  # (evar, old scope)
                 entry[0].scope = entry[1]
-        del self.postponed[m:]
+        self.postponed = postponed
 
     def bind(self, x: EVar, val: Node) -> None:
         x.ref = val
@@ -60,7 +62,7 @@ class Unifier:
         progress = True
         while progress and self.postponed:
             progress = False
-            eqs, self.postponed = self.postponed, []
+            eqs, self.postponed = self.postponed, ()
             before = len(self.trail)
             for a, b in eqs:
                 if not self._unify(a, b):
@@ -145,11 +147,11 @@ class Unifier:
         x = flex.head
         ps = self._pattern_params(x, flex.args)
         if ps is None:
-            self.postponed.append((flex, other))
+            self.postponed += ((flex, other),)
             return True
         ok = self._check(x, other, set(ps))
         if ok is None:
-            self.postponed.append((flex, other))
+            self.postponed += ((flex, other),)
             return True
         if not ok:
             return False
@@ -164,7 +166,7 @@ class Unifier:
         if x is y:
             if len(a.args) == len(b.args) and all(deref(s) is deref(t) for s, t in zip(a.args, b.args)):
                 return True
-            self.postponed.append((a, b))
+            self.postponed += ((a, b),)
             return True
         pa = self._pattern_params(x, a.args)
         if pa is not None and not b.args and y.scope <= x.scope:
@@ -176,7 +178,7 @@ class Unifier:
             return self._flex_rigid(a, b)
         if pb is not None:
             return self._flex_rigid(b, a)
-        self.postponed.append((a, b))
+        self.postponed += ((a, b),)
         return True
 
     def _check(self, x: EVar, t: Node, allowed: set) -> bool | None:
