@@ -1558,6 +1558,13 @@ class _Compiler:
                              for x in (a.conjuncts(e) if any(True for _ in a.calls(e)) else [e])]
                 pres = [self.pexp(e, pcx) if not any(True for _ in a.calls(e)) else self.logic_pre(ag, t, e)
                         for e in qualified]
+                # a pre-condition on another agent's variables is planned by this agent on its own
+                # tasks only: it has a key of its own (the same predicate sent to its owner as a
+                # constraint is planned there, on the owner's tasks)
+                pres = [q("pown {} {}", f"a_{ag.name}", p)
+                        if any(isinstance(r, a.Remote) and r.agent != ag.name for r in a.refs(e))
+                        and not self.calls_function(p) else p
+                        for p, e in zip(pres, qualified)]
                 for p, cond in zip(pres, qualified):
                     self.predicates[p] = ag.name
                     self.predicate_exprs.setdefault(p, (ag, cond))

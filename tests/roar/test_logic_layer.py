@@ -64,3 +64,15 @@ def test_candidates_are_the_entailed_tasks(tmp_path_factory, posts, x, y, where)
     model = compile_spec(load_spec(path), request)
     got = model.candidates[model.request_cst] == [("v", "t")]
     assert got == entailed(posts, where, x, y), (posts, request)
+
+
+def test_a_pre_condition_on_another_agents_variable_is_planned_on_the_agents_own_tasks():
+    """a::t needs b::ready, which b's task prep establishes and top sends to b as a constraint.
+    The agent whose task it is plans its pre-conditions on its own tasks only (4.3: "other local
+    tasks"): a never runs b::prep inside its own request (it did when top's constraint shared the
+    predicate's candidate table: two activations of prep at once, users = 2)."""
+    spec = DATA / "remote_pre.roar"
+    model = compile_spec(load_spec(spec), "top::done == true", functional="python")
+    assert model.candidates["c1_b"] == [("b", "prep")]        # top's ensure, planned by b on its tasks
+    ex = load(spec).explore("top::done == true", properties=["invariant"], never=["b::users > 1"])
+    assert ex.verdicts["invariant"].status == "holds", ex.verdicts["invariant"]
