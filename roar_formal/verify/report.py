@@ -160,6 +160,19 @@ def _roar_final_lines(rep: dict, shape: str, head: Optional[str] = None) -> Line
                 out.add(f"      {a} waits for its own variables: {why}")
             else:
                 out.add(f"      {a} waits for {b}: {why}")
+    elif dl.get("wait_for"):
+        edges = dl["wait_for"]
+        out.add("    no wait-for cycle between agents: the blocked activities wait for agents that have nothing "
+                "left to do", style="red", wrap=True)
+        for e in edges:
+            out.add(f"      {e['from']} waits for {e['to']}: {e['why']}", wrap=True)
+        idle = [b for b in dict.fromkeys(e["to"] for e in edges) if not any(e["from"] == b for e in edges)]
+        for b in idle:
+            if rows.get(b, {}).get("activities"):
+                out.add(f"      {b} is blocked itself, on no agent (its activities are above)", wrap=True)
+            else:
+                out.add(f"      {b} runs nothing that could change it (no live request: none was sent, or it "
+                        f"was aborted or ended)", wrap=True)
     else:
         out.add("    no wait-for cycle between agents: the blocked activities wait for no agent "
                 "(a request no recipe handles, for instance)", style="red", wrap=True)

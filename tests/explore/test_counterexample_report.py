@@ -184,3 +184,49 @@ def test_a_wait_on_the_agents_own_variables_is_a_cycle_of_one_said_so(tmp_path, 
     assert code == 1 and "wait-for cycle: gimbal -> gimbal" in text
     assert "gimbal waits for its own variables: level.servo waits in wait(pitch <= 0)" in text
     assert "waits for gimbal:" not in text
+
+
+ABORT_THEN_WAIT = """
+mission = ability {
+  context = { { } { bool done = false; } { } }
+  tasks = {
+    go = task {
+      post = { {done == true} }
+      recipes = {
+        r = recipe {
+          body = {
+            let h ensure(camera::located == true);
+            abort h;
+            wait(camera::located == true);
+            set done true;
+          }
+        }
+      }
+    }
+  }
+}
+camera = ability {
+  context = { { } { bool located = false; } { } }
+  tasks = {
+    locate = task {
+      post = { {located == true} }
+      recipes = { snap = recipe { body = { set located true; } } }
+    }
+  }
+}
+"""
+
+
+def test_a_wait_on_an_idle_agent_names_it(tmp_path, monkeypatch, capsys):
+    """The mission aborts its ensure before the camera acts, then waits for what it asked: a
+    deadlock with no cycle, the mission waiting for a camera that has nothing to run (it said
+    "the blocked activities wait for no agent")."""
+    spec = tmp_path / "abort_wait.roar"
+    spec.write_text(ABORT_THEN_WAIT, encoding="utf-8")
+    code, out, _err = cli(monkeypatch, capsys, "check", spec, "-r", "mission::done == true", "--property",
+                          "deadlock", "--traces", tmp_path)
+    text = " ".join(out.split())
+    assert code == 1 and "deadlock: violated" in text
+    assert "wait for agents that have nothing left to do" in text and "wait for no agent" not in text
+    assert "mission waits for camera: go.r waits in wait(camera::located == true)" in text
+    assert "camera runs nothing that could change it" in text
