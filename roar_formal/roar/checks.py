@@ -391,10 +391,18 @@ class _Checker:
         vt: Ty = None
         me = sc.agent
         if isinstance(target, a.Remote) and (me is None or target.agent != me.name):
+            owner = self.spec.agent(target.agent)
+            v = owner.var(target.name) if owner is not None else None
+            if v is not None and v.access == "controllable":
+                how = f"write a controllable variable of another agent with 'make(... where {target} == value)'"
+            elif v is not None:
+                how = (f"it is {v.access}: only its agent writes it; send '{target.agent}' a constraint on it, "
+                       f"'make({target} == value)', for one of its tasks to establish")
+            else:
+                how = f"agent '{target.agent}' has no such variable" if owner is not None else "no such agent"
             self.err("set-remote", target.pos,
                      f"set changes only this agent's own variables; '{target}' belongs to agent "
-                     f"'{target.agent}' (write a controllable variable of another agent with "
-                     f"'make(... where {target} == value)')")
+                     f"'{target.agent}' ({how})")
             self.ty(s.value, sc)
             return
         name = target.name
@@ -609,6 +617,12 @@ class _Checker:
                 sig = (res, list(params))
             elif ag is not None and ag.task(e.name) is not None:
                 self.err("task-call", e.pos, self._task_call_msg(e.name, ag.name))
+                return None
+            elif e.name in _CALL_KEYWORDS:
+                self.err("unknown-function", e.pos, f"'{e.name}(...)' is a statement, not a function: it has no value "
+                                                    f"to use in an expression" + (
+                                                        "; only an ensure gives a handle, 'let h ensure(...)'"
+                                                        if e.name == "make" else ""))
                 return None
             else:
                 names = [f.name for b in self.spec.agents if b.name in sc.visible for f in b.functions]

@@ -710,6 +710,17 @@ _STATEMENTS = {"LET", "SET", "MAKE", "ENSURE", "WAIT", "ASSERT", "ABORT"}
 _KEYWORDS = {"let", "set", "make", "ensure", "wait", "assert", "abort"}
 #: control statements of other languages, which a spec writer may try in a recipe body
 _NO_CONTROL = {"if", "while", "for", "else", "loop", "until"}
+#: statements a spec writer may expect that the language leaves to the framework (why, said with the hint)
+_NO_STATEMENT = {
+    "pause": "a recipe is paused by the framework, when a constraint it holds is in temporary failure; "
+             "to stop what a handle asks for, 'abort h'",
+    "resume": "a paused recipe resumes when its constraint holds again",
+    "continue": "a paused recipe resumes when its constraint holds again",
+    "return": "a recipe ends after its last statement; its task's post-conditions say what it achieved",
+    "retry": "a failed recipe is retried, or another one chosen, by the framework (pre-conditions bound it)",
+    "fail": "'assert(false)' fails the recipe",
+    "send": "a constraint is sent with 'make(...)' or 'ensure(...)'",
+}
 _CLOSERS = ["_SEMI", "_RBRACE", "_RPAR", "_COMMA", "_EQ", "_DCOLON"]
 _OPENER_OF = {"_RBRACE": "LBRACE", "_RPAR": "LPAR"}
 _CLOSER_OF = {v: k for k, v in _OPENER_OF.items()}
@@ -827,7 +838,10 @@ def _hints(e: UnexpectedToken, expected: set[str]) -> list[str]:
                      "between behaviours with several recipes (their pre-conditions pick one) or wait for a "
                      "condition with 'wait(...)'")
     # a misspelt statement keyword (`sett x true`): a name where a statement starts, then a name
-    if isinstance(prev, Token) and prev.type == "ID" and tok.type == "ID" and "_SEMI" in expected:
+    if isinstance(prev, Token) and prev.type == "ID" and str(prev) in _NO_STATEMENT and "_SEMI" in expected:
+        hints.append(f"the spec language has no '{prev}' statement: {_NO_STATEMENT[str(prev)]}; the statements "
+                     f"are {', '.join(sorted(_KEYWORDS))}")
+    elif isinstance(prev, Token) and prev.type == "ID" and tok.type == "ID" and "_SEMI" in expected:
         import difflib
         close = difflib.get_close_matches(str(prev), sorted(_KEYWORDS), n=1, cutoff=0.6)
         if close:

@@ -235,8 +235,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
         for p in _typed(d, "check", list, path, "a property file"):
             if p not in PROPERTIES:
                 raise RoarError(f"unknown property '{p}'{did_you_mean(str(p), PROPERTIES)}; expected one of: "
-                                f"{', '.join(PROPERTIES)}",
-                                Pos(str(path), _line_of(path, "check"), 1))
+                                f"{', '.join(PROPERTIES)}", _string_pos(path, "check", str(p)))
             if p not in spec.check:
                 spec.check.append(p)
     if "livelock" in d:

@@ -264,3 +264,15 @@ def test_a_progress_rule_name_that_names_no_rule_is_refused_where_it_is_written(
     props.write_text('check = ["livelock"]\n[livelock]\nprogress = ["ea*"]\n', encoding="utf-8")   # a glob: fine
     code, out, err = roar_cli("check", job, "--no-traces")
     assert code == 1 and "livelock: violated" in out
+
+
+def test_an_unknown_property_is_located_at_its_name(tmp_path, capsys):
+    """A misspelt property in a property file is located at the word, not at the line's start."""
+    write(tmp_path, "m.clf", "a : type.\n")
+    props = write(tmp_path, "p.toml", 'check = ["deadlock",\n         "livelok"]\n')
+    job = write(tmp_path, "j.toml", 'model = "m.clf"\nproperties = ["p.toml"]\n')
+    with pytest.raises(SystemExit) as e:
+        main(["check", str(job)])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.replace("\n", "")
+    assert f"{props}:2:11: unknown property 'livelok' (did you mean 'livelock'?)" in err
