@@ -353,6 +353,7 @@ class AgentSpec:
     # -- exploring ---------------------------------------------------------------------
     def explore(self, request: str, properties: Optional[Sequence[str]] = None, *,
                 never: Sequence[str] = (), progress: Sequence[str] = (), sequence_recipes: Sequence[str] = (),
+                kept: Union[bool, Sequence[str]] = False,
                 budget: BudgetLike = None, reduction: bool = False, name: Optional[str] = None,
                 crash: Sequence[str] = (), max_crashes: int = 1,
                 incompatible: Sequence[Sequence[str]] = (), time: Any = None,
@@ -367,7 +368,10 @@ class AgentSpec:
         live requests hold them at once; without pairs it checks those the spec makes incompatible).
         ``time="timed"`` (with ``wait_timeout`` in ms) explores the timed model (a job's ``time``).
         ``crash`` names agents that may crash and come back, at most ``max_crashes`` times in a
-        run (a job's [faults] table; docs/semantics.md, Crashes)."""
+        run (a job's [faults] table; docs/semantics.md, Crashes). ``kept`` (sequential achievement, as a
+        property file's ``[sequential-achievement] kept``): True, or the 'agent.task.recipe' names
+        whose achieved sub-goals must still hold when a later one of their block is achieved and
+        when the recipe ends."""
         from ..roar.compile import Crashes
         from ..verify.jobs import Job, PropertySpec
         # marked "(a default property)" as check marks them, unless never or incompatible add one that is not
@@ -389,6 +393,15 @@ class AgentSpec:
         for r in sequence_recipes:
             if not isinstance(r, str) or r.count(".") != 2:
                 raise RoarError(f"sequence_recipes are named 'agent.task.recipe', not {r!r}", pos)
+        if isinstance(kept, bool):
+            ps.sequence_kept = kept
+        else:
+            kept = listed(kept)
+            for r in kept:
+                if not isinstance(r, str) or r.count(".") != 2 or not all(r.split(".")):
+                    raise RoarError(f"kept is True or a list of recipes named 'agent.task.recipe', not {r!r}", pos)
+                ps.sequence_at.setdefault(r, pos)
+            ps.sequence_kept = list(kept)
         job = Job(path=spec_path, name=name or _job_name(self.name, request), model=None, props=ps,
                   budget=as_budget(budget), reduction=reduction, spec=spec_path, request=request,
                   functional=self.functional)

@@ -119,7 +119,7 @@ def _explore(target: Target, request: Optional[str], props: list[str], budget: B
         return t.explore(request, props, budget=_budget(budget), **kw)
     if request is not None:
         raise RoarError(f"{t.name}: a .clf model takes no request (its start state is an #exec directive)")
-    for k in ("sequence_recipes",):
+    for k in ("sequence_recipes", "kept"):
         if kw.pop(k, None):
             raise RoarError(f"'{k}' reads ROAR events: it is for agent specs")
     kw = {k: v for k, v in kw.items() if v is not None}
@@ -163,10 +163,14 @@ def assert_no_livelock(target: Target, request: Optional[str] = None, *, progres
 
 
 def assert_sequential_achievement(spec: Target, request: str, *, recipes: Sequence[str] = (),
+                                  kept: Union[bool, Sequence[str]] = False,
                                   budget: BudgetLike = None, allow_incomplete: bool = False) -> Exploration:
-    """TCA sequential achievement for every ``make A; make B`` (of ``recipes``, 'agent.task.recipe')."""
+    """TCA sequential achievement for every ``make A; make B`` (of ``recipes``, 'agent.task.recipe');
+    with ``kept`` (True, or recipe names), also that an achieved sub-goal still holds when a later
+    one of its block is achieved and when its recipe ends (a property file's ``kept``)."""
     __tracebackhide__ = True
-    return _verdict(_explore(spec, request, ["sequential-achievement"], budget, sequence_recipes=recipes),
+    return _verdict(_explore(spec, request, ["sequential-achievement"], budget, sequence_recipes=recipes,
+                             kept=kept),
                     "sequential-achievement", allow_incomplete)
 
 

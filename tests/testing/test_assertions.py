@@ -62,6 +62,66 @@ def test_sequential_achievement(models, traces):
         assert_sequential_achievement(spec, "cell::done == true", budget={"max_states": 3000})
 
 
+UNDOCKED = """
+mission = ability {
+  context = { { } { bool done = false; } { } }
+  tasks = {
+    charge_up = task {
+      post = { {done == true} }
+      recipes = {
+        dock_then_charge = recipe {
+          body = {
+            make(dock::docked == true);
+            make(battery::full == true);
+            set done true;
+          }
+        }
+      }
+    }
+  }
+}
+dock = ability {
+  context = { { } { bool docked = false; } { } }
+  tasks = {
+    do_dock = task { post = { {docked == true} } recipes = { approach = recipe { body = { set docked true; } } } }
+    undock = task { post = { {docked == false} } recipes = { back_off = recipe { body = { set docked false; } } } }
+  }
+}
+battery = ability {
+  context = { { } { bool full = false; } { } }
+  tasks = {
+    charge = task {
+      post = { {full == true} }
+      recipes = { trickle = recipe { body = { set full true; make(dock::docked == false); } } }
+    }
+  }
+}
+"""
+
+
+def test_sequential_achievement_with_kept_agrees_with_a_property_file(tmp_path, traces):
+    """Charging undocks the robot: the order of the sub-goals is kept (sequential achievement
+    holds), but the first is undone. ``kept`` says so, as a property file's kept does."""
+    from roar_formal.verify.check import run_job
+    from roar_formal.verify.jobs import load_job
+    spec_path = tmp_path / "undocked.roar"
+    spec_path.write_text(UNDOCKED, encoding="utf-8")
+    spec = load_spec(spec_path)
+    recipe = "mission.charge_up.dock_then_charge"
+    assert_sequential_achievement(spec, "mission::done == true", recipes=[recipe])
+    with pytest.raises(RoarAssertionError, match=r"dock::docked == true no longer holds"):
+        assert_sequential_achievement(spec, "mission::done == true", recipes=[recipe], kept=[recipe])
+    with pytest.raises(RoarAssertionError, match=r"dock::docked == true no longer holds"):
+        assert_sequential_achievement(spec, "mission::done == true", kept=True)
+    (tmp_path / "p.toml").write_text(f'check = ["sequential-achievement"]\n[sequential-achievement]\n'
+                                     f'kept = ["{recipe}"]\n', encoding="utf-8")
+    (tmp_path / "j.toml").write_text('spec = "undocked.roar"\nrequest = "mission::done == true"\n'
+                                     'properties = ["p.toml"]\n', encoding="utf-8")
+    assert run_job(load_job(tmp_path / "j.toml")).verdicts["sequential-achievement"].status == "violated"
+    with pytest.raises(RoarError, match="kept is True or a list of recipes"):
+        assert_sequential_achievement(spec, "mission::done == true", kept=["dock_then_charge"])
+
+
 def test_a_search_out_of_budget_fails_as_not_decided(models):
     ok = models / "philosophers" / "ok.clf"
     with pytest.raises(RoarAssertionError, match=r"deadlock not decided on .*ok.clf: no deadlock in \d+ states; "
