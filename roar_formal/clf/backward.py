@@ -315,11 +315,15 @@ class Backward:
         # per premise and one for the head (not one pass over the whole type per binder)
         evs: list = []
         raw: list = []
+        pis: list = []   # (premises before it, its logic variable) of each explicit Pi, for the proof term
+        implicit = self.program.implicit.get(Const(head), 0) if self.proofs else 0
         t = ty
         while True:
             tt = type(t)
             if tt is Pi:
                 evs.append(Root(EVar(t.hint, subst(t.dom, evs[::-1]) if evs else t.dom), ()))
+                if self.proofs and len(evs) > implicit:
+                    pis.append((len(raw), evs[-1]))
                 t = t.body
             elif tt is Imp:
                 raw.append((t.mode, t.dom, len(evs)))
@@ -329,7 +333,7 @@ class Backward:
         if type(t) is Root:
             rev = evs[::-1]
             prems = [(m, subst(d, rev[len(rev) - k:]) if k else d) for m, d, k in raw]
-            yield from self._clause_rest(subst(t, rev) if evs else t, prems, goal, floor, aff_ok, head)
+            yield from self._clause_rest(subst(t, rev) if evs else t, prems, goal, floor, aff_ok, head, pis)
             return
         prems: list[tuple[str, Node]] = []
         while True:
@@ -349,7 +353,7 @@ class Backward:
         yield from self._clause_rest(ty, prems, goal, floor, aff_ok, head)
 
     def _clause_rest(self, ty: Node, prems: list, goal: Root, floor: int, aff_ok: bool,
-                     head: str) -> Iterator[tuple]:
+                     head: str, pis: list = ()) -> Iterator[tuple]:
         prems = list(prems)
         while True:
             tt = type(ty)
@@ -374,7 +378,10 @@ class Backward:
         marks = {PERS: "!", AFF: "@", LIN: ""}
         for args in self._premises(prems, len(prems) - 1, floor, aff_ok):
             # args were solved last premise first; print them in declaration order
-            yield ("app", head, [(marks[m], a) for (m, _), a in zip(prems, reversed(args))])
+            out = [(marks[m], a) for (m, _), a in zip(prems, reversed(args))]
+            for k, x in reversed(pis):   # an explicit Pi's argument, where it is declared (Celf: q !z)
+                out.insert(k, ("!", ("term", self.program.show(zonk(x)))))
+            yield ("app", head, out)
         self.u.undo(mark)
 
     def _premises(self, prems, k: int, floor: int, aff_ok: bool) -> Iterator[list]:
@@ -420,32 +427,46 @@ class Backward:
         if self.on_monad is not None:
             self.on_monad(run)
         del quiescent
-        for used in self._match_pos(s, ctx):
+        witnesses: list = []   # (leaves before it, its logic variable) per Exists of the goal
+        for used in self._match_pos(s, ctx, witnesses):
             if names is None:
                 yield ("monad", None, None)
             else:
                 saved = {k: list(v) for k, v in names.facts.items()}
-                final = [names.name_of(m, t) for m, t in used]
+                final = [{LIN: "", AFF: "@", PERS: "!"}[m] + names.name_at(m, t, k) for m, t, k in used]
+                # each Exists witness where its binder stands (Celf: {... [!p, X4]} for {Exists p. a p})
+                for at, w in reversed(witnesses):
+                    final.insert(at, "!" + self.program.show(zonk(w)).replace("#", "_"))
                 names.facts = saved
                 yield ("monad", list(names.lets), final)
         self._undo(mark, hmark)
 
-    def _match_pos(self, s: Node, ctx: Context) -> Iterator[list]:
-        """Match the positive type ``s`` against the final context; linear leftovers fail."""
-        items = positive_parts(s, lambda hint, dom: Root(EVar(hint, dom), ()))
+    def _match_pos(self, s: Node, ctx: Context, witnesses: Optional[list] = None) -> Iterator[list]:
+        """Match the positive type ``s`` against the final context; linear leftovers fail. The
+        logic variables of its Exists binders are appended to ``witnesses``."""
+        evs: list = []
+
+        def witness(hint, dom):
+            evs.append(Root(EVar(hint, dom), ()))
+            return evs[-1]
+        at: list = []
+        items = positive_parts(s, witness, positions=at)
+        if witnesses is not None:
+            witnesses.extend(zip(at, evs))
         # Each hypothesis occurrence is a separate candidate (as in Celf): two identical
         # linear facts matched by two goal atoms give two solutions.
-        occ: list[list] = []  # [mode, fact, used]
+        # [mode, fact, used, which occurrence of the fact it is]: the proof term names the one used
+        occ: list[list] = []
         for t, n in ctx.lin.items():
-            occ.extend([LIN, t, False] for _ in range(n))
+            occ.extend([LIN, t, False, k] for k in range(n))
         for t, n in ctx.aff.items():
-            occ.extend([AFF, t, False] for _ in range(n))
+            occ.extend([AFF, t, False, k] for k in range(n))
         pers = list(ctx.pers)
         for m, t in ctx.open:
             if m == PERS:
                 pers.append(t)
             else:
-                occ.append([m, t, False])
+                occ.append([m, t, False, sum(1 for o in occ if o[1] is t)])
         serve = {LIN: (LIN, AFF), AFF: (AFF,), PERS: ()}
 
         chosen: list = []
@@ -482,7 +503,7 @@ class Backward:
                 self.u.undo(mark)
 
         for used in go(0):
-            yield [(m, t) for m, t, _ in used]
+            yield [(m, t, o[3] if o is not None else 0) for m, t, o in used]
 
 
 _SKEL_DEPTH = 3
@@ -882,8 +903,12 @@ class _Names:
             return "_"
         return q[0] if mode == PERS else q.pop(0)
 
-    def name_of(self, mode: str, t) -> str:
-        return self._take(mode, t)
+    def name_at(self, mode: str, t, k: int) -> str:
+        """The name of occurrence ``k`` of fact ``t`` (two equal facts are told apart by their names)."""
+        q = self.facts.get(t)
+        if not q:
+            return "_"
+        return q[0] if mode == PERS else q[k] if k < len(q) else q[-1]
 
     def _premise_args(self, step, ctx) -> Optional[list]:
         """The arguments of a step whose rule has premises proved by backward chaining, in the
@@ -956,18 +981,19 @@ class _Names:
         args = None
         if step.template is not None and step.template.backward_premises:
             args = self._premise_args(step, ctx)
-        if args is None:
-            args = [self._take(m, t) for m, t in step.consumed]
+        if args is None:   # (Celf marks a persistent argument '!', an affine one '@')
+            marks = {LIN: "", AFF: "@", PERS: "!"}
+            args = [marks[m] + self._take(m, t) for m, t in step.consumed]
         head = self.rules.get(step.ctx_rule, "_") if step.ctx_rule is not None else step.rule
         pattern = []
         for act in step.template.head:
             if act[0] == "fresh":
                 b = step.bindings[act[1]]
-                pattern.append(self.bw.program.show(b).replace("#", "_"))
-        for _mode, x in step.produced:
+                pattern.append("!" + self.bw.program.show(b).replace("#", "_"))
+        for mode, x in step.produced:
             n = self.bw.fresh_name()
             self.bind(x, n)
-            pattern.append(n)
+            pattern.append({LIN: "", AFF: "@", PERS: "!"}[mode] + n)
         self.lets.append((pattern, head, args))
 
 
@@ -978,13 +1004,17 @@ def show_proof(p) -> str:
         return f"{p[1]} {show_proof(p[2])}"
     if kind == "top":
         return "<>"
+    if kind == "term":   # an explicit Pi's argument, an index term
+        return p[1]
     if kind == "pair":
         return f"<{show_proof(p[1])}, {show_proof(p[2])}>"
     if kind == "app":
         parts = [p[1]]
         for mark, a in p[2]:
             s = show_proof(a)
-            if a[0] != "app" or a[2]:
+            if a[0] == "term":
+                s = f"({s})" if " " in s and not s.startswith("(") else s
+            elif a[0] != "app" or a[2]:
                 s = f"({s})" if a[0] in ("app", "lam") and (a[0] == "lam" or a[2]) else s
             parts.append(mark + s)
         return " ".join(parts)

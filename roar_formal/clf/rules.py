@@ -25,12 +25,13 @@ from .terms import (Aff, Bang, BVar, Const, Exists, Imp, Lam, Meta, Monad, Node,
 LIN, PERS, AFF = "1", "!", "@"
 
 
-def positive_parts(s: Node, fresh, mode: str = LIN) -> list[tuple[str, Node]]:
+def positive_parts(s: Node, fresh, mode: str = LIN, positions: Optional[list] = None) -> list[tuple[str, Node]]:
     """Split a positive type into (mode, part) leaves: atoms, ``T`` and negative types.
 
     ``Exists x:A. S`` calls ``fresh(hint, A)`` for the term that stands for x (a new
     name when the type is assumed, a logic variable when it is matched). Used by
-    every place that assumes or matches a positive type, so they agree on modes."""
+    every place that assumes or matches a positive type, so they agree on modes. ``positions``
+    receives, per Exists, the number of leaves before it (where a proof term puts its witness)."""
     out: list[tuple[str, Node]] = []
     stack = [(s, mode)]
     while stack:
@@ -42,6 +43,8 @@ def positive_parts(s: Node, fresh, mode: str = LIN) -> list[tuple[str, Node]]:
         elif tt is One:
             continue
         elif tt is Exists:
+            if positions is not None:
+                positions.append(len(out))
             stack.append((subst(t.body, [fresh(t.hint, t.dom)]), m))
         elif tt is Bang:
             stack.append((t.body, PERS))

@@ -171,4 +171,35 @@ def test_fresh_names_in_proof_terms_keep_their_number_apart():
     with_big_stack(run_directives, Program.from_text(text, "<t>"), emit=lines.append, proofs=True)
     sol = next(x for x in lines if x.startswith("Solution:"))
     import re
-    assert re.search(r"let \{\[d1_\d+, X\d+\]\}", sol), sol   # e.g. let {[d1_7, X2]} = mk X1
+    assert re.search(r"let \{\[!d1_\d+, X\d+\]\}", sol), sol   # e.g. let {[!d1_7, X2]} = mk X1
+
+
+ROUND_TRIP = """nat : type. z : nat. s : nat -> nat.
+p : nat -> type.
+q : Pi x:nat. p x.
+r : Pi x:nat. p x -> p (s x).
+item : type. a : item.
+got : item -> type. tok : item -> type.
+ra : tok a -o {got a}.
+proc : type. ready : proc -> type. token : proc -> type. next : proc -> proc -> type.
+log : proc -> type. spawn : type. budget : type.
+sp : spawn -o {Exists p:proc. Exists q:proc. ready p * ready q * !next p q * !next q p * token p}.
+pass : token P * !next P Q * budget -o {token Q * @log P}.
+"""
+GOALS = ["p (s (s z))", "got a -o got a -o {got a * got a}", "tok a -o tok a -o {got a * got a}",
+         "spawn -o budget -o budget -o {Exists p:proc. Exists q:proc. token p * ready p * ready q}",
+         "spawn -o budget -o {Exists p:proc. @log p * Exists q:proc. token q * ready p * ready q}"]
+
+
+@pytest.mark.parametrize("goal", GOALS)
+def test_printed_proof_terms_read_back_as_definitions(goal):
+    """Every proof term a query prints (explicit Pi arguments, '!' and '@' marks, Exists
+    witnesses, the order of equal facts) is accepted back as a definition of the goal's type: the
+    type checker, independent of the search, confirms each one is a proof."""
+    lines: list[str] = []
+    with_big_stack(run_directives, Program.from_text(ROUND_TRIP + f"#query * * 4 1 {goal}.\n", "<t>"),
+                   emit=lines.append, proofs=True)
+    sols = [x[len("Solution: "):] for x in lines if x.startswith("Solution: ")]
+    assert sols and len(set(sols)) == len(sols), lines   # distinct proofs print distinctly
+    for k, sol in enumerate(sols):
+        Program.from_text(ROUND_TRIP + f"pf{k} : {goal} = {sol}.\n", "<t>")   # raises if it does not check
