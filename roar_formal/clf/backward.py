@@ -152,7 +152,7 @@ class Backward:
             added[0].name = goal.hint if not any(h.name == goal.hint for h in self.hyps[:-1]) else added[0].name
             try:
                 for pf in self.solve(subst1(goal.body, param_term(p)), floor, aff_ok):
-                    yield ("lam", f"\\{added[0].name}.", pf)
+                    yield ("lam", f"\\!{added[0].name}.", pf)   # (a Pi's argument is persistent)
             finally:
                 self._pop(added)
         elif tg is Imp:
@@ -984,6 +984,13 @@ class _Names:
         if args is None:   # (Celf marks a persistent argument '!', an affine one '@')
             marks = {LIN: "", AFF: "@", PERS: "!"}
             args = [marks[m] + self._take(m, t) for m, t in step.consumed]
+        tpl = step.template
+        if tpl is not None and tpl.pi_slots:   # the explicit Pis' arguments, where they are declared
+            skip = 0 if step.ctx_rule is not None else self.bw.program.implicit.get(Const(step.rule), 0)
+            for k, slot in reversed(tpl.pi_slots[skip:]):
+                b = step.bindings[slot] if slot < len(step.bindings) else None
+                shown = "_" if b is None else self.bw.program.show(zonk(b)).replace("#", "_")
+                args.insert(k, "!" + (f"({shown})" if " " in shown else shown))
         head = self.rules.get(step.ctx_rule, "_") if step.ctx_rule is not None else step.rule
         pattern = []
         for act in step.template.head:

@@ -79,6 +79,8 @@ class Template:
     # slots of Pi variables that no premise determines: the head then puts logic variables in
     # the context (Celf's semantics), and the rules reading them take the general path
     open_slots: tuple = ()
+    # (premises before it, its slot) of each Pi binder in order: where a proof term puts its argument
+    pi_slots: tuple = ()
 
     @cached_property
     def backward_premises(self) -> bool:
@@ -140,11 +142,12 @@ class Compiler:
         self._walk(ty, [], [], out, 0)
         return out
 
-    def _walk(self, ty: Node, env: list[int], prem: list[Premise], out: list, nouter: int) -> None:
+    def _walk(self, ty: Node, env: list[int], prem: list[Premise], out: list, nouter: int,
+              pis: tuple = ()) -> None:
         tt = type(ty)
         if tt is Pi:
             s = self.alloc(ty.hint)
-            self._walk(ty.body, env + [s], prem, out, nouter)
+            self._walk(ty.body, env + [s], prem, out, nouter, pis + ((len(prem), s),))
         elif tt is Imp:
             dom = ty.dom
             # A built-in premise is always decided by the engine (it consumes nothing, so
@@ -157,19 +160,19 @@ class Compiler:
             else:
                 p = Premise(ty.mode, _conv_type(dom, env, self.alloc), dom.head if type(dom) is Root else None,
                             backward=True)
-            self._walk(ty.body, env, prem + [p], out, nouter)
+            self._walk(ty.body, env, prem + [p], out, nouter, pis)
         elif tt is With:
-            self._walk(ty.left, env, prem, out, nouter)
-            self._walk(ty.right, env, prem, out, nouter)
+            self._walk(ty.left, env, prem, out, nouter, pis)
+            self._walk(ty.right, env, prem, out, nouter, pis)
         elif tt is Monad:
             actions: list = []
             self._head(ty.body, env, actions)
-            out.append(self._finish(prem, actions, True, nouter))
+            out.append(self._finish(prem, actions, True, nouter, pis))
         else:  # an atom or T: usable by backward chaining only
-            out.append(self._finish(prem, [], False, nouter))
+            out.append(self._finish(prem, [], False, nouter, pis))
 
-    def _finish(self, prem, actions, forward, nouter) -> Template:
-        return Template(self.name, 0, nouter, prem, actions, forward, self.names)
+    def _finish(self, prem, actions, forward, nouter, pis: tuple = ()) -> Template:
+        return Template(self.name, 0, nouter, prem, actions, forward, self.names, pi_slots=pis)
 
     def _head(self, s: Node, env: list[int], actions: list) -> None:
         ts = type(s)

@@ -185,10 +185,17 @@ proc : type. ready : proc -> type. token : proc -> type. next : proc -> proc -> 
 log : proc -> type. spawn : type. budget : type.
 sp : spawn -o {Exists p:proc. Exists q:proc. ready p * ready q * !next p q * !next q p * token p}.
 pass : token P * !next P Q * budget -o {token Q * @log P}.
+dest : type. val : type. vn : nat -> val.
+eval : nat -> dest -> type. ret : val -> dest -> type.
+ev_z : eval z D -o {ret (vn z) D}.
+ev_s : eval (s E) D -o {Exists d1. eval E d1 * (Pi V. ret (vn V) d1 -o {ret (vn (s V)) D})}.
+pz : nat -> type.
+r5 : Pi x:nat. pz x -o {got a}.
 """
 GOALS = ["p (s (s z))", "got a -o got a -o {got a * got a}", "tok a -o tok a -o {got a * got a}",
          "spawn -o budget -o budget -o {Exists p:proc. Exists q:proc. token p * ready p * ready q}",
-         "spawn -o budget -o {Exists p:proc. @log p * Exists q:proc. token q * ready p * ready q}"]
+         "spawn -o budget -o {Exists p:proc. @log p * Exists q:proc. token q * ready p * ready q}",
+         "Pi d:dest. eval (s (s z)) d -o {ret (vn (s (s z))) d}", "pz (s z) -o {got a}"]
 
 
 @pytest.mark.parametrize("goal", GOALS)

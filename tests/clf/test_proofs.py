@@ -43,13 +43,14 @@ def test_backward_proofs_name_the_clauses_and_hypotheses():
 
 def test_monadic_proof_is_a_let_chain_using_every_step():
     (sol,) = lines(DPS)
-    m = re.fullmatch(r"Solution: \\d\. \\(X\d+)\. \{(.*) in (X\d+)\}", sol)
+    m = re.fullmatch(r"Solution: \\!d\. \\(X\d+)\. \{(.*) in (X\d+)\}", sol)   # (a Pi's lambda is \!d.)
     assert m, sol
     lets = m.group(2).split(" in ")
     heads = [re.search(r"= (\S+)", l).group(1) for l in lets]
     # ev_plus, two ev_num, the continuation (a variable), add_s, add_z: six steps
     assert heads[0] == "ev_plus" and sorted(heads[1:3]) == ["ev_num", "ev_num"]
     assert re.fullmatch(r"X\d+", heads[3]) and heads[4:] == ["add_s", "add_z"]
+    assert " !(s z) !z " in lets[3]   # the continuation's explicit Pi arguments, as Celf prints them
     assert lets[0].endswith(f"ev_plus {m.group(1)}")  # the rule consumed the assumption
     assert lets[-1].startswith(f"let {{{m.group(3)}}}")  # the answer is the last fact made
 
