@@ -284,6 +284,11 @@ class Elaborator:
         for x in order:
             if isinstance(x.ty, Root) and type(x.ty.head) is EVar:
                 raise TypeError_(f"cannot infer the type of '{self._name_of(x)}'", pos)
+            if isinstance(x.ty, TypeNode) and type(x.ty) is Type and x.name.startswith("ty_"):
+                # the unknown type of a binder or variable that nothing in the declaration constrains
+                name = x.name[3:]
+                raise TypeError_(f"cannot infer the type of '{name}': nothing in the declaration tells it; write "
+                                 f"it ('{name}:A', as in 'Exists {name}:A.' or 'Pi {name}:A.')", pos)
             if isinstance(x.ty, TypeNode) and type(x.ty) is Type:
                 raise TypeError_(f"'{self._name_of(x)}' would have to be a type; CLF has no type variables "
                                  "(declare a type of type codes, e.g. 'tp : type.', and index by it)", pos)
