@@ -81,6 +81,9 @@ class Backward:
         self.monad_runs: list[Run] = []
         self.on_monad: Optional[Callable[[Run], None]] = None
         self.proofs = False  # build monadic proof terms (names for every fact in the monad)
+        # a T was proved in the current scope (Celf's slack): the linear hypotheses in scope that are
+        # left over may be taken as consumed by it, whenever the scope checks them
+        self.slack = False
         self._names = 0
         # families whose goals are tabled (see _tabled_answers): set by a caller that asks only
         # whether a goal has a proof, never for the proof
@@ -160,7 +163,8 @@ class Backward:
             binder = {LIN: "\\", PERS: "\\!", AFF: "\\@"}[goal.mode]
             try:
                 for pf in self.solve(goal.body, floor, aff_ok):
-                    if all(h.used or h.mode != LIN for h in added):
+                    # (a T proved inside may have taken what is left: slack)
+                    if self.slack or all(h.used or h.mode != LIN for h in added):
                         for h in reversed(added):
                             pf = ("lam", f"{binder}{h.name}.", pf)
                         yield pf
@@ -169,36 +173,52 @@ class Backward:
         elif tg is With:
             yield from self._with(goal, floor, aff_ok)
         elif tg is Top:
-            mark, hmark = self.u.mark(), len(self.htrail)
-            for i in range(floor, len(self.hyps)):
-                h = self.hyps[i]
-                if not h.used and h.mode != PERS:
-                    self._use(h)
+            # Celf's slack (OpSem: Top consumes nothing and sets slack): the resources left over
+            # when their scope ends are T's, so goals solved after it may still use them
+            old, self.slack = self.slack, True
             yield ("top",)
-            self._undo(mark, hmark)
+            self.slack = old
         elif tg is Monad:
             yield from self._monad(goal.body, floor)
         else:
             raise AssertionError(f"unexpected goal {goal!r}")
 
     def _with(self, goal: With, floor: int, aff_ok: bool) -> Iterator[None]:
+        """Both halves from the same resources, consuming the same ones; a half that proved T
+        (slack) may have consumed fewer, the other's extra being its T's (Celf's additive rule
+        with slack)."""
         mark, hmark = self.u.mark(), len(self.htrail)
+        outer_slack = self.slack
+        self.slack = False
         for pl in self.solve(goal.left, floor, aff_ok):
+            left_slack = self.slack
             left_used = frozenset(id(h) for h in self.htrail[hmark:])
             # redo the right half from the same resources
             saved = self.htrail[hmark:]
             for h in saved:
                 h.used = False
             mark2 = len(self.htrail)
+            self.slack = False
             for pr in self.solve(goal.right, floor, aff_ok):
+                right_slack = self.slack
                 right_used = frozenset(id(h) for h in self.htrail[mark2:])
-                if right_used == left_used:
+                if right_used == left_used or (left_slack and left_used <= right_used) \
+                        or (right_slack and right_used <= left_used) or (left_slack and right_slack):
+                    extra = [h for h in saved if id(h) not in right_used]   # the left half's, taken by the right's T
+                    for h in extra:
+                        h.used = True
+                    self.slack = outer_slack or (left_slack and right_slack)
                     yield ("pair", pl, pr)
+                    self.slack = right_slack
+                    for h in extra:
+                        h.used = False
             while len(self.htrail) > mark2:
                 self.htrail.pop().used = False
             for h in saved:
                 h.used = True
+            self.slack = False
         self._undo(mark, hmark)
+        self.slack = outer_slack
 
     # -------------------------------------------------------------- atoms
     def _atom(self, goal: Root, floor: int, aff_ok: bool) -> Iterator[None]:
@@ -395,9 +415,21 @@ class Backward:
             sub = self.solve(a, len(self.hyps), True)
         else:
             sub = self.solve(a, floor, aff_ok)
+        if mode == LIN:
+            for pf in sub:
+                for rest in self._premises(prems, k - 1, floor, aff_ok):
+                    yield [pf] + rest
+            return
+        # a persistent or affine premise is proved from the hypotheses above the floor only: a T
+        # in it takes none of the outer ones (its slack stays inside)
+        outer = self.slack
+        self.slack = False
         for pf in sub:
+            inner, self.slack = self.slack, outer
             for rest in self._premises(prems, k - 1, floor, aff_ok):
                 yield [pf] + rest
+            self.slack = inner
+        self.slack = outer
 
     # -------------------------------------------------------------- the monad
     def _monad(self, s: Node, floor: int) -> Iterator[None]:
