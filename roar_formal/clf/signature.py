@@ -952,8 +952,29 @@ def _modes_of(sig: Signature, fam: Const) -> Optional[tuple]:
     if modes is None:
         return None
     info = sig.lookup(fam.name)
-    implicit = sig.implicit_modes.get(fam.name) or ("*",) * info.implicit
+    implicit = sig.implicit_modes.get(fam.name) or _implicit_modes(info, modes)
     return tuple(implicit) + tuple(modes)
+
+
+def _implicit_modes(info: ConstInfo, modes: tuple) -> tuple:
+    """The modes of a family's implicit arguments that ``#mode`` leaves out, inferred as Twelf and
+    Celf infer them: input when the argument occurs in the type of an input argument, else
+    output when it occurs in the type of an output one, else unchecked ('*')."""
+    n = info.implicit
+    if not n:
+        return ()
+    ins: set = set()
+    outs: set = set()
+    t, depth, k = info.classifier, 0, 0
+    while isinstance(t, (Pi, Imp)):
+        if depth + (1 if isinstance(t, Pi) else 0) > n or isinstance(t, Imp):   # an explicit argument
+            if k < len(modes):
+                _vars_of(t.dom, depth, ins if modes[k] == "+" else outs if modes[k] == "-" else set())
+            k += 1
+        if isinstance(t, Pi):
+            depth += 1
+        t = t.body
+    return tuple("+" if i in ins else "-" if i in outs else "*" for i in range(n))
 
 
 def mode_check(sig: Signature, info: ConstInfo) -> None:
