@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 from ..clf.printer import show
-from ..clf.terms import Root
+from ..clf.terms import Const, Root
 from ..errors import Pos, RoarError
 from ..explore.replay import match_renaming, read_as, returned_values
 from .activity import CallResult
@@ -174,6 +174,17 @@ def check_records(records: list, file: str) -> None:
                     "'detail' (an object)")
 
 
+def _failures_used_up(state, fc: Optional[str]) -> bool:
+    """Is the failure budget of function ``fc`` (``fails_left fc N``, from max_failures) zero here?"""
+    if fc is None:
+        return False
+    bag = state.index.get(Const("fails_left"))
+    for f in (bag.items if bag else ()):
+        if f.args and getattr(getattr(f.args[0], "head", None), "name", None) == fc:
+            return getattr(getattr(f.args[1], "head", None), "name", None) == "z"
+    return False
+
+
 def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelReplay:
     """Replay robot trace step records on the abstract (exploration-mode) compiled model."""
     prog = abstract_model.program()
@@ -221,9 +232,14 @@ def replay_on_model(abstract_model, registry, records: list[dict]) -> ModelRepla
             labels = [f"outcome_{fc}_{o}" for o in names]
             cands = [c for c in choices if c.rule in labels]
             if not cands:
+                why = ""
+                if _failures_used_up(state, fc):
+                    # the abstraction's bound on this primitive's failures (max_failures) is used up
+                    why = (f": the abstraction allows {fname} no more failing outcomes in this run (its "
+                           f"max_failures is used up); the robot fails more often than it assumes")
                 return ModelReplay(n, Divergence(
                     int(rec.get("step", n)), rule,
-                    f"the model cannot answer {fname} with outcome {names[0]} here",
+                    f"the model cannot answer {fname} with outcome {names[0]} here{why}",
                     [f"{fname} -> {names[0]}"] + want[0],
                     [f"enabled here: {', '.join(sorted({c.rule for c in choices})) or 'nothing'}"]),
                     outcomes)

@@ -346,6 +346,32 @@ def test_a_result_no_outcome_covers_is_rejected_at_its_step(tmp_path):
     assert any("banana" in line for line in rp.divergence.robot)
 
 
+def test_a_robot_failing_more_than_max_failures_allows_is_said_so(tmp_path):
+    """The door run's planner finds no path many times; an abstraction that assumes it fails at
+    most once (max_failures=1) cannot follow the robot at the second failure, and says why."""
+    import importlib.util
+    res, path = _door_trace(tmp_path)
+    header, steps = read_trace(path)
+    spec_ast, _model, binding, _sc = setup("door_nav.roar", DOOR_REQ, "door.toml")
+    mod_spec = importlib.util.spec_from_file_location("door_nav_bound", MODELS / "door_nav.py")
+    mod = importlib.util.module_from_spec(mod_spec)
+    mod_spec.loader.exec_module(mod)
+    reg = mod.registry()
+    reg.register("compute_path", lambda gx, gy: True, outcomes=mod.OUTCOMES["compute_path"], replace=True,
+                 max_failures=1)
+    bounded = compile_spec(spec_ast, DOOR_REQ, registry=reg, functional="abstract")
+    failed = [s["step"] for s in steps if s.get("call", {}).get("function") == "planner::compute_path"
+              and s["call"]["result"]["failed"]]
+    assert len(failed) >= 2
+    rp = replay_on_model(bounded, binding.robot, steps)
+    assert not rp.ok and rp.divergence.step == failed[1]
+    assert ("the model cannot answer planner::compute_path with outcome no_path here: the abstraction allows "
+            "planner::compute_path no more failing outcomes in this run (its max_failures is used up)"
+            in rp.divergence.reason)
+    plain, _binding = abstract_model("door_nav.roar", DOOR_REQ, "door.toml")
+    assert replay_on_model(plain, binding.robot, steps).ok   # without the bound the run replays
+
+
 def test_a_robot_step_the_model_does_not_allow_is_rejected_with_both_sides(tmp_path):
     res, path = _door_trace(tmp_path)
     header, steps = read_trace(path)
