@@ -37,6 +37,9 @@ def celf_category(exc: Exception) -> str:
         return "general error"
     if isinstance(exc, QueryError):
         return "query failed"
+    from ..clf.builtins import BuiltinError
+    if isinstance(exc, BuiltinError):   # numbers and strings are an extension: Celf has no such error
+        return "built-in error, an extension"
     return ""
 
 
@@ -92,7 +95,9 @@ def run_clf(file: Path, seed: int = 0, trace: bool = False, fair: bool = False, 
         raise RoarError(f"{file}: the program recursed too deeply for this engine") from None
     except RoarError as exc:
         category = celf_category(exc)
-        if category.startswith("not supported"):
+        if category.startswith("built-in"):
+            exc.notes.append("(an error of the built-in numbers and strings, an extension Celf does not have)")
+        elif category.startswith("not supported"):
             exc.notes.append("(a construct Celf reads that this engine does not support)")
         elif category and not exc.message.startswith(category):
             exc.notes.append(f"({category}, in Celf's terms)")

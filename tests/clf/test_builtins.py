@@ -605,3 +605,16 @@ def test_garbage_with_literals_only_raises_syntax_errors(text):
         except SyntaxError_ as e:
             assert e.pos is not None and e.pos.line >= 1 and e.pos.col >= 1
             assert not any(n in e.message for n in ("NUMLIT", "STRING", "NUMBER", "$END", "Token("))
+
+
+def test_a_builtin_error_on_the_command_line_says_it_is_an_extension(tmp_path, capsys):
+    """Celf has no built-in numbers: their errors are not put in one of Celf's categories, but said
+    to be the extension's (it had no note at all, unlike every other error)."""
+    from roar_formal.cli import main
+    f = tmp_path / "g.clf"
+    f.write_text("g : number -> type.\n#query * 1 * 1 num_add X 1 2.\n", encoding="utf-8")
+    with pytest.raises(SystemExit) as e:
+        main(["clf", str(f)])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and f"{f}:2:1: built-in 'num_add': its inputs must be ground" in err
+    assert "(an error of the built-in numbers and strings, an extension Celf does not have)" in err
