@@ -176,6 +176,18 @@ def _caller_pos() -> Pos:
     return Pos(f.f_code.co_filename, f.f_lineno, 1)
 
 
+def _written_at(pos: Pos, text: str) -> Pos:
+    """Where the string literal ``text`` is written on the caller's line (inside its quotes, as
+    patterns are located), or ``pos`` itself when the line does not show it."""
+    import linecache
+    line = linecache.getline(pos.file, pos.line)
+    for quote in ('"', "'"):
+        col = line.find(quote + text + quote)
+        if col >= 0:
+            return Pos(pos.file, pos.line, col + 2)
+    return pos
+
+
 def _triple_quoted(text: str) -> str:
     """``text`` as a Python literal that shows its lines (the backslash after the opening quotes
     keeps the first line out of the string)."""
@@ -300,6 +312,19 @@ class AgentSpec:
         from ..roar.run import parse_crash
         faults, crashes = listed(faults), listed(crashes)   # (one string is one fault, one crash)
         texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
+        try:
+            return self._run(request, seed, faults, texts, crashes, max_steps, fair, strict_faults, scenario,
+                             time, wait_timeout)
+        except RoarError as exc:
+            # a fault the spec cannot use (the command line's message): located where the test writes it
+            if exc.pos is None and exc.message.startswith("--fault "):
+                name = exc.message[len("--fault "):].split(":", 1)[0].split(",", 1)[0]
+                written = next((t for t in texts if t == name or t.startswith(name)), name)
+                raise RoarError(exc.message, _written_at(_caller_pos(), written), exc.notes) from None
+            raise
+
+    def _run(self, request, seed, faults, texts, crashes, max_steps, fair, strict_faults, scenario, time,
+             wait_timeout) -> "RunReport":
         crashes = [parse_crash(c) for c in crashes]
         if scenario is not None:
             if crashes:
@@ -582,7 +607,7 @@ def _properties(properties: Sequence[str], never: Sequence[str], allowed: tuple)
         if p not in allowed:
             from ..errors import did_you_mean
             raise RoarError(f"unknown property {p!r}{did_you_mean(str(p), allowed)}; expected one of: "
-                            f"{', '.join(allowed)}", _caller_pos())
+                            f"{', '.join(allowed)}", _written_at(_caller_pos(), str(p)))
         if p not in out:
             out.append(p)
     if never and "invariant" not in out:

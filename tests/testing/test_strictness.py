@@ -45,6 +45,24 @@ def test_a_fault_naming_no_function_is_an_error_with_a_did_you_mean(pick, fault)
         assert e.value.message == message
 
 
+def test_a_fault_the_spec_cannot_use_is_located_where_the_test_writes_it(pick):
+    """As a pattern or a predicate is: the test file, its line, the column inside the quotes."""
+    line = _line() + 2
+    with pytest.raises(RoarError) as e:
+        assert_succeeds(pick, REQUEST, faults=["close_jaw:1"])
+    text = linecache.getline(__file__, line)
+    assert (e.value.pos.file, e.value.pos.line, e.value.pos.col) == (__file__, line, text.index('"close_jaw:1"') + 2)
+    line = _line() + 2
+    with pytest.raises(RoarError) as e:
+        pick.run(REQUEST, faults=["close_jaws:5"])
+    assert e.value.pos.line == line and e.value.message == f"--fault close_jaws:5: {UNUSED}"
+    line = _line() + 2
+    with pytest.raises(RoarError) as e:
+        pick.explore(REQUEST, ["deadlok"])
+    text = linecache.getline(__file__, line)
+    assert (e.value.pos.line, e.value.pos.col) == (line, text.index('"deadlok"') + 2)
+
+
 def test_a_fault_naming_nothing_close_has_no_did_you_mean(pick):
     with pytest.raises(RoarError) as e:
         pick.run(REQUEST, faults=["zzz:2"])
