@@ -309,7 +309,6 @@ class AgentSpec:
         ``time="timed"`` models the periods of wait, assert and ensure, a wait giving up after
         ``wait_timeout`` ms (``--time``, ``--wait-timeout``; docs/semantics.md, Time).
         """
-        from ..roar.run import parse_crash
         faults, crashes = listed(faults), listed(crashes)   # (one string is one fault, one crash)
         texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
         try:
@@ -325,6 +324,7 @@ class AgentSpec:
 
     def _run(self, request, seed, faults, texts, crashes, max_steps, fair, strict_faults, scenario, time,
              wait_timeout) -> "RunReport":
+        from ..roar.run import parse_crash
         crashes = [parse_crash(c) for c in crashes]
         if scenario is not None:
             if crashes:
