@@ -366,6 +366,7 @@ class Narrator:
         self.m = model
         self.labels: dict = {}       # req param -> label
         self.req_info: dict = {}     # label -> (agent, text)
+        self.req_cst: dict = {}      # label -> its constraint's constant (what its failure explains)
         self.calls: dict = {}        # dest -> (agent, function text)
         self.acts: dict = {}         # inst -> (agent, task, recipe)
         # the task tree (for TCA): which request each activation handles, each request's parent
@@ -421,6 +422,7 @@ class Narrator:
                 agent, text = m.csts.get(self._name(q.cst), ("?", "?"))
                 agent = m.agents.get(self._name(q.agent), agent)
                 self.req_info.setdefault(lab, (agent, text))
+                self.req_cst.setdefault(lab, self._name(q.cst))
                 kind = self._name(q.kind) if isinstance(q.kind.head, Const) else "?"
                 emitter = q.emitter
                 outside = isinstance(emitter.head, Const) and emitter.head.name == "itop"
@@ -452,6 +454,8 @@ class Narrator:
                     why = ": its tasks ran but the ensured predicate does not hold"
                 elif s == "s_failure" and st.rule.startswith("unavailable"):
                     why = f": {agent} is unavailable (it crashed)"
+                elif s == "s_failure" and st.rule == "no_task" and prev == "s_pending":
+                    why = self._no_task_why(lab, agent)   # (after a temporary failure, the error context says it)
                 yield RoarEvent(st.i, "state", agent, f"{lab} {STATE_NAMES.get(prev, 'new') if prev else 'new'}"
                                 f" -> {STATE_NAMES[s]}  ({text}){why}",
                                 {"request": lab, "from": STATE_NAMES.get(prev), "to": STATE_NAMES[s],
@@ -464,6 +468,18 @@ class Narrator:
                 was = STATE_NAMES.get(self._name(x.state))
                 yield RoarEvent(st.i, "state", agent, f"{lab} {was} -> aborted  ({text})",
                                 {"request": lab, "from": was, "to": "aborted", **self.req_meta.get(lab, {})})
+
+    def _no_task_why(self, lab: str, agent: str) -> str:
+        """Why no task could be chosen for a request (the logic layer's candidates, from the model)."""
+        c = self.req_cst.get(lab) or (self.m.request_cst if lab == "R0" else None)
+        cands = self.m.candidates.get(c) if c is not None else None
+        if cands is None:
+            return ""
+        if not cands:
+            return f": no task of {agent} establishes it"
+        names = ", ".join(dict.fromkeys(t for _a, t in cands))
+        return (f": none of its candidate tasks ({names}) can be chosen: a pre-condition does not hold and no "
+                f"other task of {agent} establishes it")
 
     def _crashes(self, st: "_StepFacts"):
         """Crash faults (docs/semantics.md, Crashes): the crash plan, a crash, a comeback, an

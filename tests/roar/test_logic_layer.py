@@ -76,3 +76,19 @@ def test_a_pre_condition_on_another_agents_variable_is_planned_on_the_agents_own
     assert model.candidates["c1_b"] == [("b", "prep")]        # top's ensure, planned by b on its tasks
     ex = load(spec).explore("top::done == true", properties=["invariant"], never=["b::users > 1"])
     assert ex.verdicts["invariant"].status == "holds", ex.verdicts["invariant"]
+
+
+def test_a_request_no_task_can_take_says_why(tmp_path):
+    """top asks a for a::done, whose one task needs b::ready (another agent's variable, false, and
+    a guard for a): the request fails at once, and the event says why (it said nothing)."""
+    text = (DATA / "remote_pre.roar").read_text(encoding="utf-8").replace(
+        "let h ensure(b::ready == true);", "").replace("abort h;", "")
+    spec = tmp_path / "guarded.roar"
+    spec.write_text(text, encoding="utf-8")
+    run = load(spec).run("top::done == true")
+    lines = [e.text for e in run.events if e.kind == "state"]
+    assert ("R1 pending -> failure  (a::done == true): none of its candidate tasks (t) can be chosen: a "
+            "pre-condition does not hold and no other task of a establishes it") in lines, lines
+    # a request after a temporary failure says nothing more: its error context tells the failed tasks
+    assert any(x.startswith("R0 temporary failure -> failure  (top::done == true)") and x.endswith(")")
+               for x in lines), lines
