@@ -431,6 +431,9 @@ class ModelPath:
 
     def __repr__(self) -> str:
         end = ", then quiescent" if self.quiescent else ""
+        if self.events is not None:   # a spec's path, in its terms: the ROAR events (the engine's rules say little)
+            shown = "; ".join(f"{e.step}. {e.agent}: {e.text}" for e in self.events)
+            return f"<path of {len(self.rules)} steps, its ROAR events: {shown or '(none)'}{end}>"
         return f"<path of {len(self.rules)} steps: {' '.join(self.rules) or '(none)'}{end}>"
 
     def _repr_pretty_(self, p: Any, cycle: bool) -> None:

@@ -175,6 +175,10 @@ def test_paths_of_a_spec_carry_its_roar_events_and_reach_its_deadlock(models):
     assert all(canonical_key(s) in keys for s in path.states)
     texts = [e.text for e in path.events]
     assert texts[0] == "R0 sent -> pending  (arm::started == true)" and "make R2 to arm: arm::parked == true" in texts
+    # as hypothesis prints a falsifying path: in the spec's terms, not the engine's rule names
+    shown = repr(path)
+    assert shown.startswith("<path of 27 steps, its ROAR events: 1. arm: R0 sent -> pending  (arm::started == true);")
+    assert shown.endswith(", then quiescent>") and "select_" not in shown
     with pytest.raises(InvalidArgument, match="need a request"):
         find(paths(spec), lambda p: True, settings=FIND)
     # a path's states read in the spec's terms: each variable's value as the events wrote it
