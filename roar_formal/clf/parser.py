@@ -78,7 +78,15 @@ def _desugar_pattern(binder: str, pat, ty, body):
         if not isinstance(ty, s.One):
             raise TypeError_(f"the pattern '1' of {binder} needs the type '1'", ty.pos)
         return body
-    # a tuple [p1, p2, ..., pn] matches S1 * (S2 * ...)
+    # a tuple [p1, p2, ..., pn] matches S1 * (S2 * ...); its variables are checked in the order
+    # written, so that the first wrong one is the one reported
+    stack = list(reversed(pat.items))
+    while stack:
+        item = stack.pop()
+        if isinstance(item, s.PTuple):
+            stack.extend(reversed(item.items))
+        elif isinstance(item, s.PVar) and item.mode != "persistent":
+            return _desugar_pattern(binder, item, ty, body)
     first, rest = pat.items[0], pat.items[1:]
     if not isinstance(ty, s.Tensor):
         raise TypeError_(f"the pattern '[...]' of {binder} needs a tensor type 'S1 * S2'", ty.pos)
