@@ -172,15 +172,20 @@ camera = ability {
 """
 
 
+def deadlock_check(tmp_path, monkeypatch, capsys, spec_text: str, request: str) -> tuple[int, str]:
+    """``roar-verify check SPEC -r REQUEST --property deadlock``: its exit status and output, on one line."""
+    spec = tmp_path / "spec.roar"
+    spec.write_text(spec_text, encoding="utf-8")
+    code, out, _err = cli(monkeypatch, capsys, "check", spec, "-r", request, "--property", "deadlock",
+                          "--traces", tmp_path)
+    return code, " ".join(out.split())
+
+
 def test_a_wait_on_the_agents_own_variables_is_a_cycle_of_one_said_so(tmp_path, monkeypatch, capsys):
     """The gimbal waits for its own pitch, which nothing changes: the wait-for graph has the
     gimbal waiting for itself, and the report says what that means (it said "gimbal waits for
     gimbal", and the message for no cycle named this very case)."""
-    spec = tmp_path / "gimbal.roar"
-    spec.write_text(SELF_WAIT, encoding="utf-8")
-    code, out, _err = cli(monkeypatch, capsys, "check", spec, "-r", "camera::shot == true", "--property",
-                          "deadlock", "--traces", tmp_path)
-    text = " ".join(out.split())
+    code, text = deadlock_check(tmp_path, monkeypatch, capsys, SELF_WAIT, "camera::shot == true")
     assert code == 1 and "wait-for cycle: gimbal -> gimbal" in text
     assert "gimbal waits for its own variables: level.servo waits in wait(pitch <= 0)" in text
     assert "waits for gimbal:" not in text
@@ -221,11 +226,7 @@ def test_a_wait_on_an_idle_agent_names_it(tmp_path, monkeypatch, capsys):
     """The mission aborts its ensure before the camera acts, then waits for what it asked: a
     deadlock with no cycle, the mission waiting for a camera that has nothing to run (it said
     "the blocked activities wait for no agent")."""
-    spec = tmp_path / "abort_wait.roar"
-    spec.write_text(ABORT_THEN_WAIT, encoding="utf-8")
-    code, out, _err = cli(monkeypatch, capsys, "check", spec, "-r", "mission::done == true", "--property",
-                          "deadlock", "--traces", tmp_path)
-    text = " ".join(out.split())
+    code, text = deadlock_check(tmp_path, monkeypatch, capsys, ABORT_THEN_WAIT, "mission::done == true")
     assert code == 1 and "deadlock: violated" in text
     assert "wait for agents that have nothing left to do" in text and "wait for no agent" not in text
     assert "mission waits for camera: go.r waits in wait(camera::located == true)" in text
