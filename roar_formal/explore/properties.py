@@ -93,7 +93,7 @@ def check_deadlock(g: StateGraph, accept: Optional[Callable[[int], bool]] = None
         return Verdict("deadlock", "violated",
                        f"deadlock reachable in {len(cx.prefix)} steps ({n_dead} deadlock state"
                        f"{'s' if n_dead != 1 else ''} among {g.n_states:,} states)",
-                       cx, {"deadlock_states": n_dead, "final_states": n_final})
+                       cx, {"deadlock_states": n_dead, "final_states": len(quiescent) - n_dead})
     if not g.complete:
         return incomplete_note("deadlock", g)
     return Verdict("deadlock", "holds", f"no deadlock in {g.n_states:,} states ({n_final} accepted final)",

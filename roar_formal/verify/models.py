@@ -39,8 +39,14 @@ def make_accept(program: Program, text: str, where: str) -> Callable[[Context], 
         x.scope = 1 << 62  # pattern variables may stand for fresh names
 
     def accept(ctx: Context) -> bool:
+        # the pattern's variables are shared by every call: bindings made by one state's match
+        # must be undone before the next state is tested
         bw = Backward(program)
-        return any(True for _ in bw._match_pos(s, ctx))
+        mark, hmark = bw.u.mark(), len(bw.htrail)
+        try:
+            return next(iter(bw._match_pos(s, ctx)), None) is not None
+        finally:
+            bw.undo(mark, hmark)
 
     return accept
 
