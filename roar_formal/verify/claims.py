@@ -41,6 +41,8 @@ def trace_claim(job, prop: str) -> dict:
                      formula=props.temporal[prop].text)
     elif prop == "incompatible-tasks":   # the declared pairs; none: those the spec's post-conditions make
         claim["incompatible"] = [[a, b] for (a, _pa), (b, _pb) in props.incompatible_pairs]
+    elif prop == "deadlock" and props.accept:   # final states the job accepts are no deadlock
+        claim["accept"] = props.accept
     elif prop == "invariant":
         if props.spec_always or props.spec_never:
             claim.update(always=[f.text for f in props.spec_always], never=[f.text for f in props.spec_never])
@@ -106,6 +108,8 @@ def confirm_claim(path, header: dict, res: ReplayResult, compiled: Optional[Comp
         if unfair:
             return False, unfair
     try:
+        if prop == "deadlock" and "accept" in claim:
+            return _confirm_accept(claim["accept"], res, path)
         if compiled is None:
             return _confirm_clf(claim, res, k, path)
         return _confirm_spec(claim, prop, res, k, compiled, path)
@@ -145,6 +149,25 @@ def _never_patterns(claim: dict, res: ReplayResult, path) -> Optional[str]:
     bad = make_never(program.sig, str(path), [(p, Pos(str(path), 1, 1)) for p in pats])
     why = bad(res.states[-1])
     return why.replace("a reachable state", "the final state", 1) if why else None
+
+
+def _confirm_accept(text, res: ReplayResult, path) -> tuple[Optional[bool], str]:
+    """A deadlock claimed under the job's accept pattern: the replayed end has no step and is
+    not one of the final states the pattern accepts."""
+    if not isinstance(text, str):
+        raise RoarError('expected "claim.accept" in the trace header to be a string', Pos(str(path), 1, 1))
+    enabled = res.system.successors(res.states[-1])
+    if enabled:
+        return False, (f"not a deadlock on this model: {len(enabled)} step(s) are enabled at the end "
+                       f"({', '.join(sorted({s.label for s in enabled})[:5])})")
+    from .models import make_accept
+    try:
+        accepted = make_accept(res.system.program, text, str(path))(res.states[-1])
+    except RoarError as e:
+        raise RoarError(f"the trace's claim: accept pattern {text!r}: {e.message}", Pos(str(path), 1, 1)) from None
+    if accepted:
+        return False, f"not a deadlock: the final state is one the job accepts (accept = {text!r})"
+    return True, f"the final state is a deadlock: no step is enabled and it does not match accept = {text!r}"
 
 
 def _confirm_clf(claim: dict, res: ReplayResult, k: Optional[int], path) -> Optional[tuple[Optional[bool], str]]:

@@ -3,6 +3,7 @@ variables bind per state), checked against a plain enumeration of the final stat
 
 from __future__ import annotations
 
+import json
 from collections import deque
 from pathlib import Path
 
@@ -11,8 +12,9 @@ import pytest
 from roar_formal.clf.printer import show
 from roar_formal.clf.program import Program
 from roar_formal.clf.state import canonical_key
-from roar_formal.verify.check import run_job
+from roar_formal.verify.check import run_job, save_counterexample
 from roar_formal.verify.jobs import load_job
+from roar_formal.verify.replay import replay_trace
 
 # three coins fall one after another; each lands heads or tails. A run ends with three
 # ``done`` facts; the pattern accepts the endings where the first two results agree.
@@ -64,3 +66,23 @@ def test_accept_binds_its_variables_per_state(tmp_path: Path, backend, accept, o
     assert v.details["final_states"] == len(finals) - len(bad)
     if bad:
         assert v.details["deadlock_states"] == len(bad)
+
+
+def test_a_deadlock_trace_carries_the_accept_pattern_and_replay_re_decides_it(tmp_path: Path):
+    """Replay re-decides a deadlock under the job's accept pattern: the explorer's trace is
+    confirmed, and the same steps claimed under a pattern that accepts their end are not."""
+    (tmp_path / "coins.clf").write_text(MODEL)
+    (tmp_path / "p.toml").write_text('check = ["deadlock"]\n[deadlock]\naccept = "done c1 h * done c2 X * done c3 Y"\n')
+    (tmp_path / "j.toml").write_text('model = "coins.clf"\nproperties = ["p.toml"]\n[expect]\ndeadlock = "violated"\n')
+    res = run_job(load_job(tmp_path / "j.toml"))
+    trace = save_counterexample(res, "deadlock", tmp_path)
+    lines = trace.read_text(encoding="utf-8").splitlines()
+    header = json.loads(lines[0])
+    assert header["claim"]["accept"] == "done c1 h * done c2 X * done c3 Y"
+    rep = replay_trace(trace, tmp_path / "coins.clf")
+    assert rep.confirmed is True, rep.confirmation
+    header["claim"]["accept"] = "done c1 X * done c2 Y * done c3 Z"   # every ending accepted
+    forged = tmp_path / "forged.jsonl"
+    forged.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n", encoding="utf-8")
+    rep = replay_trace(forged, tmp_path / "coins.clf")
+    assert rep.confirmed is False and "accept" in rep.confirmation
