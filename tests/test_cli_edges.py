@@ -229,3 +229,16 @@ def test_property_files_on_the_command_line_are_checked_before_anything_runs(roa
     (tmp_path / "empty").mkdir()
     code, _, err = roar_cli("check", tmp_path / "empty", "-r", "a::x == 1")
     assert code == 2 and "no model, spec or job file" in err
+
+
+@pytest.mark.parametrize("backend", ["auto", "ground", "general"])
+def test_a_rule_with_a_head_only_variable_is_refused_at_the_rule(roar_cli, tmp_path, backend):
+    """``Q`` is bound by no premise: firing ``r`` puts a logic variable in the state. The auto
+    backend used to ground it forever; the general one refused with no location."""
+    (tmp_path / "m.clf").write_text("proc : type. p1 : proc.\nidle : proc -> type.\n"
+                                    "r : idle P -o {idle Q}.\n#exec * idle p1.\n", encoding="utf-8")
+    (tmp_path / "j.toml").write_text(f'model = "m.clf"\nbackend = "{backend}"\n[expect]\ndeadlock = "holds"\n',
+                                     encoding="utf-8")
+    code, out, err = roar_cli("check", tmp_path / "j.toml", "--max-seconds", "60")
+    assert code == 2
+    assert f"{tmp_path / 'm.clf'}:3:1: rule 'r' uses variable Q only in its head" in out + err

@@ -78,6 +78,9 @@ class GroundModel:
             for act in t.head:
                 if act[0] != "fact":
                     raise NotGround(f"rule '{t.name}' makes fresh names or rules at run time")
+            if t.open_slots:
+                raise NotGround(f"rule '{t.name}' has a variable only its head uses (its facts would hold "
+                                "logic variables)")
             if any(p.backward for p in t.premises):
                 raise NotGround(f"rule '{t.name}' has a premise solved by proof search")
         if start.rules or start.inert:

@@ -24,7 +24,23 @@ def load_model(job: Job) -> tuple[Program, Context]:
     if job.start > len(execs):
         raise RoarError(f"'start = {job.start}' but {job.model.name} has only {len(execs)} #exec or #trace directive(s)",
                         job.start_at)
+    refuse_open_heads(program)
     return program, program.start_context(execs[job.start - 1].start)
+
+
+def refuse_open_heads(program: Program) -> None:
+    """The explorer's states are ground: a rule with a Pi variable that only its head uses
+    (``r : idle P -o {idle Q}``) would put a logic variable in the state, which no backend
+    explores. Refused before the search, at the rule."""
+    for t in program.templates:
+        if t.forward and t.open_slots:
+            names = [t.slot_names[s] if s < len(t.slot_names) else "?" for s in t.open_slots]
+            info = program.sig.consts.get(t.name)
+            raise RoarError(f"rule '{t.name}' uses variable{'s' if len(names) > 1 else ''} "
+                            f"{', '.join(names)} only in its head (no premise binds "
+                            f"{'them' if len(names) > 1 else 'it'}): firing it puts a logic variable in the state, and the explorer's states are ground "
+                            "(bind it in a premise, or run the program with #exec or #query)",
+                            info.pos if info is not None else None)
 
 
 def make_accept(program: Program, text: str, where: str) -> Callable[[Context], bool]:
