@@ -20,7 +20,7 @@ from ..errors import RoarError
 MAX_SIZE = 100_000
 
 STATUS_STYLE = {"proved": "green", "consistent": "green", "refuted": "yellow", "inconsistent": "red",
-                "unknown": "red"}
+                "unknown": "red", "vacuous": "red"}
 
 
 def _obligations(models: list[Path]):

@@ -12,7 +12,7 @@ refutations and consistency look for a model over ``N`` messages for growing
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import z3
@@ -41,7 +41,7 @@ class Outcome:
     """What the prover found for one obligation."""
 
     obligation: Obligation
-    status: str  # proved | refuted | consistent | inconsistent | unknown
+    status: str  # proved | refuted | consistent | inconsistent | vacuous | unknown
     seconds: float
     countermodel: Optional[Countermodel] = None
     reason: str = ""
@@ -153,8 +153,34 @@ def prove(ob: Obligation) -> Outcome:
     if model is not None:
         return Outcome(ob, "consistent" if ob.is_consistency else "refuted", seconds, model)
     if proof == "unsat":
+        if ob.check_vacuity and not ob.is_consistency:
+            return _vacuity(ob, began)
         return Outcome(ob, "inconsistent" if ob.is_consistency else "proved", seconds)
     return Outcome(ob, "unknown", seconds, reason=proof or "no model up to the domain bound")
+
+
+def hypotheses_only(ob: Obligation) -> Obligation:
+    """The obligation's assumptions and hypotheses, without its conclusion: consistent exactly
+    when the claim is not proved vacuously."""
+    def claim(v: Vocabulary, w):
+        return ob.claim(v, w)[0], None
+
+    return replace(ob, name=f"{ob.name} (hypotheses)", expect="consistent", claim=claim, check_vacuity=False)
+
+
+def _vacuity(ob: Obligation, began: float) -> Outcome:
+    """A proved claim whose hypotheses have a model is proved; one whose hypotheses contradict
+    the axioms is vacuous (every claim follows), and not what anyone expects."""
+    hyp = hypotheses_only(ob)
+    if find_model(hyp) is not None:
+        return Outcome(ob, "proved", time.perf_counter() - began)
+    if _try_proof(hyp) == "unsat":
+        return Outcome(ob, "vacuous", time.perf_counter() - began,
+                       reason="proved only vacuously: the model's facts about the claim's messages (their kinds, "
+                              "who sent whom, the declared constraints) contradict the axioms, so every claim "
+                              "follows from them; look for constraints that cannot hold together")
+    return Outcome(ob, "unknown", time.perf_counter() - began,
+                   reason="proved, but no model of its hypotheses was found to show the proof is not vacuous")
 
 
 def unsat_core(ob: Obligation) -> Optional[list[str]]:

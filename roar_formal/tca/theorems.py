@@ -43,6 +43,9 @@ class Obligation:
     group: str = "axioms"
     order_only: bool = True  # the claim only compares times (countermodels may show ranks)
     added: tuple[Axiom, ...] = ()  # axioms outside the theory, e.g. a candidate to test for consistency
+    # a proof must also show its hypotheses satisfiable (a model's facts that contradict the
+    # axioms prove every claim): the built-in theorems have their own non-vacuity obligations
+    check_vacuity: bool = False
 
     @property
     def is_consistency(self) -> bool:

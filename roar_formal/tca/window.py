@@ -141,6 +141,7 @@ def claim_obligation(model: Model, claim: Claim) -> Obligation:
         tuple(window.members) + ("t",),
         group=model.name,
         order_only=_order_only(window.tree),
+        check_vacuity=True,
     )
 
 

@@ -201,3 +201,17 @@ def test_claim_naming_a_missing_child(ambler):
     bad = dataclasses.replace(claim(ambler, "at_most_one_step_ahead"), holds="end(wing) < start(next)")
     with pytest.raises(RoarError, match="issues no wing"):
         claim_obligation(ambler, bad)
+
+
+def test_a_claim_from_contradictory_constraints_is_vacuous_not_proved(ambler):
+    """SeqAch both ways between two children: no task tree meets the model's facts, so every
+    claim follows; prove must say vacuous (it said proved, even of start(a) < start(a))."""
+    step = ambler.classes["TakeStep"]
+    both = dataclasses.replace(step, constraints=step.constraints + tuple(
+        dataclasses.replace(c, first=c.second, second=c.first) for c in step.constraints if c.relation == "seq_ach"))
+    contra = dataclasses.replace(ambler, classes={**ambler.classes, "TakeStep": both})
+    for name in ("steps_in_order", "next_plan_waits_for_leg"):
+        outcome = prove(claim_obligation(contra, claim(contra, name)))
+        assert outcome.status == "vacuous" and not outcome.ok and "contradict" in outcome.reason
+    # the untouched model's claims are proved, their hypotheses having a model
+    assert prove(claim_obligation(ambler, claim(ambler, "steps_in_order"))).status == "proved"
