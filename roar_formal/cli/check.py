@@ -235,11 +235,11 @@ def register(app: typer.Typer) -> None:
                 raise typer.Exit(code)
             return
         from ..testing.api import replay
-        from ..verify.pictures import check_output_file
+        from ..outputs import check_outputs
 
-        for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
-            if path is not None:
-                check_output_file(path, option, [trace] + ([model] if model is not None else []))
+        from ..roar.functional import module_candidates
+        check_outputs((("--png", png), ("--svg", svg), ("--dot", dot)),
+                      [trace, model, functional] + (module_candidates(model) if model is not None else []))
         if dot is not None:   # a trace with nothing to draw is refused before the work
             from ..tca.roar_runs import task_tree_events
             from ..tca.tree_dot import task_tree_dot

@@ -9,6 +9,7 @@ from typing import Optional
 import typer
 
 from ..errors import RoarError
+from ..outputs import check_outputs
 
 __all__ = ["register"]
 
@@ -44,8 +45,7 @@ def register(app: typer.Typer) -> None:
         from .console import show
 
         spec_obj = load_spec(spec, functional=functional)
-        for p in (trace, png):
-            _check_output(p, spec_obj.ast, spec, scenario)
+        check_outputs((("--trace", trace), ("--png", png)), spec_obj.input_files() + [scenario])
         report = spec_obj.run(request, scenario=scenario, seed=seed, faults=fault, max_steps=max_steps,
                               strict_faults=True)
         if trace is not None:
@@ -110,21 +110,10 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(1)
 
 
-def _check_output(path: Optional[Path], spec_ast, spec: Path, scenario: Path) -> None:
-    """Refuse, before the work starts, an output path that would overwrite an input or cannot be written."""
-    from ..roar.sources import spec_files
-    if path is None:
-        return
-    p = Path(path)
-    inputs = ({Path(f).resolve() for f in spec_files(spec_ast)} if spec_ast is not None else set()) \
-        | {Path(scenario).resolve(), Path(spec).resolve()}
-    if p.exists() and p.resolve() in inputs:
-        raise RoarError(f"{p}: refusing to overwrite an input file")
-    if p.exists() and p.is_dir():
-        raise RoarError(f"{p}: is a folder, expected a file path")
-    parent = p.parent if str(p.parent) else Path(".")
-    if parent.exists() and not parent.is_dir():
-        raise RoarError(f"{p}: cannot write: {parent} is not a folder")
+def _modules(spec) -> list:
+    """Where the spec's functional-layer module may be (an output never goes there)."""
+    from ..roar.functional import module_candidates
+    return module_candidates(spec) if spec is not None else []
 
 
 def _writing(path: Path, write) -> None:
@@ -158,7 +147,7 @@ def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], s
     if header.get("robot") is not None:   # a counterexample the robot-backed explorer found
         return _replay_robot_backed(trace, header, records, model, on_robot, loops, png, functional, force, console)
     if on_robot is not None:
-        _check_output(png, None, model, on_robot)
+        check_outputs([("--png", png)], [trace, model, on_robot, functional] + _modules(model))
         _same_spec(trace, header, model, force)
         from ..robot.onrobot import replay_on_robot
         spec_ast, compiled, binding, sc = prepare(model, request, on_robot, functional)
@@ -241,7 +230,7 @@ def _replay_robot_backed(trace: Path, header: dict, records: list, model: Path, 
         raise RoarError(f"{trace}: a counterexample found on the robot; replay it with --on-robot SCENARIO "
                         f"(it was found on {info.get('scenario_name', 'a scenario')}; the trace's paths are never "
                         f"opened) and --model SPEC")
-    _check_output(png, None, model, on_robot)
+    check_outputs([("--png", png)], [trace, model, on_robot, functional] + _modules(model))
     check_robot_records(records, str(trace))
     mine = fingerprint([("scenario", "scenario.toml", on_robot)])
     theirs = info.get("scenario_fingerprint")

@@ -11,6 +11,7 @@ import typer
 
 from .console import make_console, show
 from ..errors import Pos, RoarError
+from ..outputs import check_outputs
 
 #: where an error in the text of ``--request`` is reported (its column counted in the option's value)
 COMMAND_LINE_REQUEST = Pos("--request", 1, 1)
@@ -56,12 +57,7 @@ def register(app: typer.Typer) -> None:
         faults = parse_faults(fault)
         crashes = [parse_crash(c) for c in crash]
         spec_obj = load_spec(spec, functional=functional)
-        if png is not None or svg is not None or dot is not None:
-            from ..roar.sources import spec_files
-            from ..verify.pictures import check_output_file
-            for path, option in ((png, "--png"), (svg, "--svg"), (dot, "--dot")):
-                if path is not None:
-                    check_output_file(path, option, [Path(f) for f in spec_files(spec_obj.ast)] + [Path(spec)])
+        check_outputs((("--trace", trace), ("--png", png), ("--svg", svg), ("--dot", dot)), spec_obj.input_files())
         # a bad request (or time) is reported before anything is printed
         spec_obj.compile(request, "python", crashes=crashes or None, time=time, wait_timeout=wait_timeout,
                          request_at=COMMAND_LINE_REQUEST)
@@ -105,19 +101,13 @@ def register(app: typer.Typer) -> None:
         """
         from ..testing.api import load_spec
         from ..trace.format import write_atomic
-        from ..roar.ast import walk
         spec_obj = load_spec(spec, functional=functional)
-        spec_ast = spec_obj.ast
         model = spec_obj.compile(request, "abstract", time=time, wait_timeout=wait_timeout,
                                  request_at=COMMAND_LINE_REQUEST)
         if output is None:
             sys.stdout.write(model.text)
         else:
-            if output.exists() and output.resolve() == Path(spec).resolve():
-                raise RoarError(f"{output}: refusing to overwrite the spec itself")
-            sources = {Path(f).resolve() for f in {n.pos.file for n in walk(spec_ast)} if Path(f).is_file()}
-            if output.resolve() in sources:
-                raise RoarError(f"{output}: refusing to overwrite a file of the spec")
+            check_outputs([("--output", output)], spec_obj.input_files())
             _writing(output, lambda: write_atomic(output, model.text))
 
 

@@ -233,6 +233,13 @@ class AgentSpec:
         return cls(tree, path, functional=Path(functional) if functional is not None else None, text=text,
                    name=f"<{name}>")
 
+    def input_files(self) -> list[Path]:
+        """Every file this spec was read from: its own, those it imports, its functional-layer
+        module (outputs are refused these paths)."""
+        from ..roar.sources import spec_files
+        files = [Path(f) for f in spec_files(self.ast)]
+        return files + [p for p in (self.path, self.functional) if p is not None and p.exists()]
+
     def __repr__(self) -> str:
         if self.text is not None:   # generated specs print as code that rebuilds them
             return f"AgentSpec.from_text({_triple_quoted(self.text)})"

@@ -284,21 +284,6 @@ def check_output_folder(folder: Path, option: str, inputs: list[Path]) -> None:
         raise RoarError(f"{option} {folder}: is an input of this command")
 
 
-def check_output_file(path: Path, option: str, inputs: list[Path]) -> None:
-    """Refuse, before any work, a picture path that is an input, a folder, or in no writable folder."""
-    path = Path(path)
-    if path.exists() and path.is_dir():
-        raise RoarError(f"{option} {path}: is a folder, expected a file path")
-    if path.resolve() in {Path(p).resolve() for p in inputs}:
-        raise RoarError(f"{option} {path}: is an input of this command; not overwritten")
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise RoarError(f"{option} {path}: {parent} is not a folder")
-    import os
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise RoarError(f"{option} {path}: {parent} is not writable")
-
-
 def write_chart(rep: dict, title: str, what: str, png: Optional[Path], svg: Optional[Path]) -> list[Path]:
     """Draw the chart of a report into the PNG and SVG files asked for (atomically)."""
     out = []

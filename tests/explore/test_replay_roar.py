@@ -158,7 +158,7 @@ def test_run_draws_its_chart_and_never_overwrites_an_input(tmp_path, roar_cli):
         ("arm", "door", "9. make R1: door::open == true"), ("door", "arm", "18. make R2: arm::parked == true")]
     before = spec.read_bytes()
     code, _out, err = roar_cli("run", spec, "-r", "arm::started == true", "--png", spec)
-    assert code == 2 and "is an input of this command; not overwritten" in err
+    assert code == 2 and "is an input of this command; refusing to overwrite it" in err
     assert spec.read_bytes() == before
 
 

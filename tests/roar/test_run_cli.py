@@ -424,3 +424,23 @@ def test_a_compiled_spec_checked_as_a_program_says_to_check_the_spec(capsys, tmp
     text = " ".join(out.split())
     assert code == 1 and "deadlock: violated" in text
     assert "this program is a compiled ROAR spec, whose every run ends in a quiescent state" in text
+
+
+def test_run_outputs_never_overwrite_the_functional_module_or_each_other(capsys, tmp_path, monkeypatch):
+    """``--trace spa_loop.py`` used to replace the functional-layer module with the trace, and two
+    outputs on one path left only the last one written."""
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(SPA[0], "spa.roar")
+    shutil.copy(SPA[0].with_suffix(".py"), "spa.py")
+    before = {p: Path(p).read_bytes() for p in ("spa.roar", "spa.py")}
+    for argv, option in ((["--trace", "spa.py"], "--trace"), (["--dot", "spa.roar"], "--dot"),
+                         (["--trace", "out.jsonl", "--dot", "out.jsonl"], "--dot"),
+                         (["--trace", "spa.py/out.jsonl"], "--trace")):
+        code, out, err = cli(capsys, "run", "spa.roar", "-r", SPA[1], *argv)
+        assert_user_error(code, err, option)
+        assert out == ""   # refused before the run
+    assert {p: Path(p).read_bytes() for p in before} == before
+    assert sorted(os.listdir(".")) == ["spa.py", "spa.roar"]
+    code, out, err = cli(capsys, "compile", "spa.roar", "-r", SPA[1], "-o", "spa.py")
+    assert_user_error(code, err, "refusing to overwrite")
+    assert Path("spa.py").read_bytes() == before["spa.py"]
