@@ -22,7 +22,7 @@ import re
 import socket
 import tempfile
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Iterable, Iterator, Optional
 
 from ..errors import Pos, RoarError, json_message
 
@@ -135,8 +135,9 @@ def write_trace(path: str | Path, header: dict, steps: Iterable[dict]) -> None:
 NUMBERED_KINDS = ("roar-run", "roar-robot-run", "counterexample")
 
 
-def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
-    """Read a trace; malformed lines are errors with their line number."""
+def read_trace(path: str | Path, lines: Optional[list[int]] = None) -> tuple[dict, list[dict]]:
+    """Read a trace; malformed lines are errors with their line number. ``lines``, if given, is
+    filled with each step record's line number (for errors found later, at a step)."""
     path = Path(path)
     from ..inputs import check_input_file
     check_input_file(path)
@@ -176,6 +177,8 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
             raise RoarError(f"step {k} comes after step {steps[-1]['step']}: the steps of a trace are numbered "
                             "in increasing order (the order they were taken)", Pos(str(path), n, 1))
         steps.append(rec)
+        if lines is not None:
+            lines.append(n)
     if header is None:
         raise RoarError(f"{path} is empty: expected a roar-formal trace")
     return header, steps

@@ -194,7 +194,8 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
     ROAR spec the ROAR events and variable changes of each step, the final per-agent table,
     and a confirmation of the trace's claim (a deadlock is still a deadlock, a lasso's cycle
     closes, the sequential-achievement pair is still broken)."""
-    header, records = read_trace(path)
+    lines: list[int] = []
+    header, records = read_trace(path, lines)
     notes: list[str] = []
     start = start_index(path, header)
     program, compiled = load_replay_target(path, header, model, functional, force, notes)
@@ -217,12 +218,12 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
     else:
         def make_system(prog: Program, begin: Context) -> ClfSystem:
             return ClfSystem(prog, begin, Options())
-    replayed = _Replayed(path, header, records, compiled, on_step)
+    replayed = _Replayed(path, header, records, compiled, on_step, lines)
     try:
         res = replay_steps(path, program, start, replayed.steps(), replayed.on_step, notes, replayed.wrap(make_system),
                            stands_for=replayed.stands_for)
     except RoarError as exc:
-        raise replayed.explain(exc) from None
+        raise replayed.locate(replayed.explain(exc)) from None
     if replayed.abstracted:
         res.notes.append(f"{replayed.abstracted} answer(s) of the functional layer are no declared outcome's value "
                          f"and were read as the declared outcome that covers them (the values the outcomes "
@@ -237,6 +238,7 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
             steps[ev.step - 1]["events"].append(ev.as_json())
         for s, st in zip(steps, res.engine_steps):
             s["changes"] = step_changes(compiled, st)
+        _same_events(path, records, lines, steps, bool(replayed.stands_for or replayed.opaque))
         requests = {lab: {"agent": a, "constraint": t} for lab, (a, t) in sorted(
             nar.req_info.items(), key=lambda kv: (len(kv[0]), kv[0]))}
         labels = (nar.labels, nar.req_info)
@@ -245,6 +247,38 @@ def replay_trace(path: str | Path, model: Optional[str | Path], *, functional: O
         decided = _confirm_run(header, res, labels)
     confirmed, why = decided if decided is not None else _confirm(header, res, compiled)
     return TraceReplay(header, res, compiled, steps, requests, confirmed, why, labels)
+
+
+def _event_fields(ev: dict, loose: bool) -> dict:
+    """What an event says that replay re-derives: all of it, except the value (and so the text)
+    a functional-layer answer gave, which replay reads as the declared outcome covering it;
+    ``loose``: some answer was read so, and values that flowed from it differ too."""
+    if loose or ev.get("kind") == "primitive-end":
+        return {k: v for k, v in ev.items() if k not in ("text", "value")}
+    return ev
+
+
+def _same_events(path, records: list[dict], lines: list[int], steps: list[dict], loose: bool) -> None:
+    """The ROAR events a trace records at each step are those the model's step makes: a trace
+    whose event fields were edited (or written for another spec) is refused at the first step
+    where they differ, since ``tca-check`` and the reports read those fields."""
+    for k, (rec, step) in enumerate(zip(records, steps)):
+        if "event" not in rec:
+            continue
+        ev = rec["event"]
+        recorded = [] if ev is None else ev.get("events") if isinstance(ev, dict) and ev.get("kind") == "several" \
+            else [ev]
+        if not isinstance(recorded, list) or not all(isinstance(e, dict) for e in recorded):
+            raise RoarError(f"step {trace_name(rec.get('step'))}: \"event\" is neither null nor a ROAR event",
+                            Pos(str(path), lines[k] if k < len(lines) else 1, 1))
+        made = step["events"]
+        if [_event_fields(e, loose) for e in recorded] != [_event_fields(e, loose) for e in made]:
+            def said(evs):
+                return "; ".join(shown(e.get("text", e.get("kind"))) for e in evs) or "no event"
+            raise RoarError(f"step {trace_name(rec.get('step'))}: the trace records {said(recorded)}, but on this "
+                            f"model the step makes {said(made)}: the trace's events do not describe its steps "
+                            "(edited, or written for another spec)",
+                            Pos(str(path), lines[k] if k < len(lines) else 1, 1))
 
 
 #: the rule name a run's trace gives the functional layer's answers (roar/run.py: the runner's external step)
@@ -268,8 +302,10 @@ class _Replayed:
     (``on_step`` tells it), before the next is asked for."""
 
     def __init__(self, path, header: dict, records: list[dict], compiled: Optional[CompiledModel],
-                 on_step: Optional[Callable[[int, dict, Context], None]]):
+                 on_step: Optional[Callable[[int, dict, Context], None]], lines: Optional[list[int]] = None):
         self.path = path
+        self.lines = lines or []               # each record's line in the file
+        self.index: Optional[int] = None       # the record being read
         self.header = header
         self.records = records
         self.compiled = compiled
@@ -302,6 +338,7 @@ class _Replayed:
 
     def __iter__(self):
         for k, rec in enumerate(self.records):
+            self.index = k
             if self.compiled is not None and rec.get("rule") == FUNCTIONAL_LAYER:
                 if self.taken != k or self.system is None:   # replay_steps takes each step before the next
                     raise RuntimeError("replay: a functional-layer step read before the steps preceding it")
@@ -438,6 +475,14 @@ class _Replayed:
                 "state: " + "; ".join(show_context(self.state))]
 
     # ------------------------------------------------------------ a step replay cannot take
+    def locate(self, exc: RoarError) -> RoarError:
+        """``exc`` at the line of the step being read, when it names no place of its own."""
+        if exc.pos is not None or self.index is None or self.index >= len(self.lines):
+            return exc
+        prefix = f"{self.path}: "
+        message = exc.message[len(prefix):] if exc.message.startswith(prefix) else exc.message
+        return RoarError(message, Pos(str(self.path), self.lines[self.index], 1), exc.notes)
+
     def explain(self, exc: RoarError) -> RoarError:
         """``exc``, or, when the step's rule is enabled but on other facts, an error that says so."""
         if self.stands_for:

@@ -268,3 +268,32 @@ def test_answered_values_are_read_occurrence_by_occurrence():
     pt = {"(vrec (vnum 4) (vnum 4))": "(vrec (vnum 0) (vnum 0))", **four}
     assert reads_as("p (vrec (vnum 4) (vnum 4)) (vnum 4)", "p (vrec (vnum 0) (vnum 0)) (vnum 5)", pt)
     assert not reads_as("p (vrec (vnum 4) (vnum 4))", "p (vrec (vnum 5) (vnum 4))", pt)
+
+
+def test_a_trace_whose_events_were_edited_is_refused_at_that_line(roar_cli, tmp_path):
+    """Replay re-derives each step's ROAR events: a recorded event that says something else
+    (``tca-check`` and the reports read these fields) is refused at its line; an unedited
+    trace replays. Lines are counted in the file, blank lines included."""
+    trace, header, records, _out = _cli_run_and_replay(roar_cli, tmp_path, MUTUAL)
+    k = next(i for i, r in enumerate(records) if r["event"] and r["event"].get("kind") == "write")
+    ev = records[k]["event"]
+    forged = [dict(r) for r in records]
+    forged[k] = {**records[k], "event": {**ev, "text": ev["text"] + "0"}}
+    out = tmp_path / "forged.jsonl"
+    out.write_text(json.dumps(header) + "\n\n" + "\n".join(json.dumps(x) for x in forged) + "\n")
+    with pytest.raises(RoarError) as e:
+        replay_trace(out, MUTUAL[0])
+    assert e.value.pos.line == k + 3 and f"step {records[k]['step']}: the trace records" in e.value.message
+    # a step whose event was dropped, and a step that gained one
+    for edit in ({"event": None}, ):
+        forged[k] = {**records[k], **edit}
+        _write(out, header, forged)
+        with pytest.raises(RoarError, match="the trace's events do not describe its steps"):
+            replay_trace(out, MUTUAL[0])
+    quiet = next(i for i, r in enumerate(records) if r["event"] is None)
+    forged = [dict(r) for r in records]
+    forged[quiet] = {**records[quiet], "event": ev}
+    _write(out, header, forged)
+    with pytest.raises(RoarError) as e:
+        replay_trace(out, MUTUAL[0])
+    assert e.value.pos.line == quiet + 2 and "makes no event" in e.value.message
