@@ -143,15 +143,34 @@ def register(app: typer.Typer) -> None:
     def tca_check(
         trace: Path = typer.Argument(..., help="A JSON Lines trace (engine run, robot run or counterexample)."),
         as_json: bool = typer.Option(False, "--json", help="Print the result as JSON (the same fields as the table)."),
+        model: Optional[Path] = typer.Option(None, "--model", help="Replay the trace on this spec first and read "
+                                             "the task tree from the model, not from the trace's own fields."),
+        functional: Optional[Path] = typer.Option(None, "--functional",
+                                                  help="With --model: this functional-layer module."),
+        force: bool = typer.Option(False, "--force", help="With --model: replay even if the spec's sources differ "
+                                   "from those the trace records."),
     ) -> None:
-        """Check a trace's task tree against the TCA axioms and its declared constraints; exit 1 on violations."""
+        """Check a trace's task tree against the TCA axioms and its declared constraints; exit 1 on violations.
+
+        Without --model the task tree is the trace's own record of its events (a trace is data:
+        an edited one checks as edited); with --model SPEC the trace is replayed on the spec and
+        its events and sequential-achievement pairs are the model's.
+        """
         from ..tca.check import check_trace
 
         console = make_console()
-        report = check_trace(trace)
+        if model is None and (functional is not None or force):
+            raise RoarError("--functional and --force go with --model SPEC")
+        events = None
+        if model is not None:
+            from ..clf.query import with_big_stack
+            from ..verify.replay import model_task_tree
+            events = with_big_stack(lambda: model_task_tree(trace, model, functional=functional, force=force))
+        report = check_trace(trace, events)
         tree = report.tree
         if as_json:
             doc = {"trace": str(trace), "ok": report.ok, "messages": len(tree.messages),
+                   "task_tree_from": "model" if model is not None else "trace", "notes": report.notes,
                    "declared": len(tree.declared), "instances": report.instances, "residual": report.residual,
                    "seconds": round(report.seconds, 6),
                    "violations": [{"rule": v.rule, "from": v.source, "messages": list(dict.fromkeys(v.messages)),
@@ -164,6 +183,8 @@ def register(app: typer.Typer) -> None:
         console.print(f"{trace}: {len(tree.messages)} messages, {len(tree.declared)} declared constraints, "
                       f"{report.instances} axiom instances ({report.residual} left open, decided by the constraint solver), "
                       f"{report.seconds:.3f} s")
+        for note in report.notes:
+            console.print(f"note: {note}")
         if report.ok:
             console.print("no violations", style="green")
             return

@@ -24,7 +24,7 @@ from __future__ import annotations
 import copy
 import time
 from bisect import bisect_right
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Optional
@@ -62,6 +62,7 @@ class CheckReport:
     instances: int = 0
     residual: int = 0
     seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)   # what the check took on trust, or left out
 
     @property
     def ok(self) -> bool:
@@ -423,14 +424,43 @@ def read_task_tree(path) -> list[Event]:
     return events
 
 
-def check_trace(path) -> CheckReport:
-    """Read a trace and check it. A trace with no task-tree message is an error, not a pass:
-    nothing was checked."""
-    report = check_events(read_task_tree(path))
+#: said of a ROAR trace checked as the file has it
+AS_RECORDED = ("the task tree is read from the trace's own event fields and header pairs, as recorded; "
+               "`--model SPEC` replays the trace on the spec and reads them from the model instead")
+
+
+def check_trace(path, events: Optional[list[Event]] = None) -> CheckReport:
+    """Read a trace and check it (``events``: its task-tree events, already read from a model's
+    replay). A trace with no task-tree message is an error, not a pass: nothing was checked."""
+    notes = []
+    header = _roar_header(path)
+    if events is None:
+        events = read_task_tree(path)
+        if header is not None:
+            notes.append(AS_RECORDED)
+        if header is not None and not header.get("seq_pairs"):
+            notes.append("the trace header names no sequential-achievement pairs (\"seq_pairs\"): no SeqAch "
+                         "between requests is checked")
+    report = check_events(events)
+    report.notes = notes + report.notes
     if not report.tree.messages:
         raise RoarError("the trace holds no task-tree message (no request, no primitive call, no "
                         "constraint_sent record): there is nothing to check", Pos(str(path), 1, 1))
     return report
+
+
+def _roar_header(path) -> Optional[dict]:
+    """The header of a ROAR trace (None: a file of TCA records only)."""
+    from ..trace.format import read_trace
+    from .roar_runs import is_roar_trace
+    try:
+        with Path(path).open(encoding="utf-8") as handle:
+            if '"roar-formal"' not in handle.readline():
+                return None
+    except (OSError, UnicodeDecodeError):
+        return None
+    header = read_trace(path)[0]
+    return header if is_roar_trace(header) else None
 
 
 def _named(m: Message) -> str:

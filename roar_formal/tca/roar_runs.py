@@ -40,7 +40,7 @@ from ..errors import Pos, RoarError
 from ..trace.format import ROAR_EVENT_KINDS
 from .trace_events import Declared, Event, Mark, Sent
 
-__all__ = ["is_roar_trace", "task_tree_events"]
+__all__ = ["is_roar_trace", "seq_pairs_of", "task_tree_events"]
 
 FINAL = ("success", "failure", "aborted")
 
@@ -84,7 +84,7 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
     last_time = Fraction(0)
     recs = list(records)
     timed = any(isinstance(r, dict) and isinstance(r.get("time"), (int, float)) for r in recs)
-    plans = _Plans(header, sent, order, starts, ends)
+    plans = _Plans(header, sent, order, starts, ends, file)
     for n, rec in enumerate(recs, 1):
         if not isinstance(rec, dict):
             continue
@@ -93,7 +93,11 @@ def task_tree_events(header: dict, records: Iterable[dict], file: str = "<trace>
         if "step" in rec and (not isinstance(step, int) or isinstance(step, bool)):
             raise RoarError(f"the step number is {step!r}: a whole number is expected", pos)
         t = _time(rec, n)
-        last_time = max(last_time, t)
+        if isinstance(rec.get("time"), (int, float)) and not isinstance(rec.get("time"), bool):
+            if t < last_time:   # (steps without a time count by number: another unit, not compared)
+                raise RoarError(f"step {step}'s time {rec['time']} is before the step before it: a trace's steps "
+                                "are in the order they were taken, and time does not go back", pos)
+            last_time = t
         for ev in _events_of(rec):
             kind = ev.get("kind")
             if kind not in ROAR_EVENT_KINDS:
@@ -165,13 +169,22 @@ def _constraint(ev: dict) -> Optional[str]:
     return text if isinstance(text, str) else None
 
 
+def seq_pairs_of(header: dict, file: str) -> list[list]:
+    """The header's ``seq_pairs``: ``[first site, second site, where, ...]`` lists (``plan:AGENT``
+    as the first site: that agent's plans). Absent: none; anything else is refused, not read as
+    none (a trace whose pairs were garbled would check no SeqAch and pass)."""
+    pairs = header.get("seq_pairs", [])
+    if not isinstance(pairs, list) or not all(isinstance(p, list) and len(p) >= 2 and isinstance(p[0], str)
+                                              and isinstance(p[1], str) for p in pairs):
+        raise RoarError('expected "seq_pairs" in the trace header to be a list of [first site, second site, ...] '
+                        "lists of strings (as the commands that write traces write it)", Pos(file, 1, 1))
+    return pairs
+
+
 def _seq_ach(header: dict, by_emitter: dict, file: str) -> list[Event]:
     """SeqAch(A, B) for every request A sent from site a and B sent later from site b by one
     activation, (a, b) a pair of the header (every ordered pair of one block, docs/tca.md)."""
-    pairs = header.get("seq_pairs")
-    if not isinstance(pairs, list):
-        return []
-    wanted = {(p[0], p[1]) for p in pairs if isinstance(p, list) and len(p) >= 2}
+    wanted = {(p[0], p[1]) for p in seq_pairs_of(header, file)}
     out: list[Event] = []
     for em, sends in by_emitter.items():
         for k, (a_req, a_site, _t) in enumerate(sends):
@@ -191,10 +204,8 @@ class _Plans:
     their handling intervals, the parents they give to what their activations send and call,
     and SeqAch between consecutive tasks."""
 
-    def __init__(self, header: dict, sent: dict, order: list, starts: dict, ends: dict):
-        pairs = header.get("seq_pairs")
-        self.agents = {p[0][5:] for p in (pairs if isinstance(pairs, list) else [])
-                       if isinstance(p, list) and p and isinstance(p[0], str) and p[0].startswith("plan:")}
+    def __init__(self, header: dict, sent: dict, order: list, starts: dict, ends: dict, file: str):
+        self.agents = {p[0][5:] for p in seq_pairs_of(header, file) if p[0].startswith("plan:")}
         self.sent, self.order, self.starts, self.ends = sent, order, starts, ends
         self.current: dict[str, dict] = {}     # request -> {"tasks", "k", "goals", "agent"}
         self.count: dict[str, int] = {}        # request -> plans seen

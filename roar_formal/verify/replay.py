@@ -697,3 +697,24 @@ def _confirm(header: dict, res: ReplayResult, compiled: Optional[CompiledModel])
     if prop:
         return None, f"replay does not re-decide '{prop}' (its definition is in the job); every step is a step of the model"
     return None, NOTHING_CLAIMED
+
+
+def model_task_tree(path: str | Path, model: str | Path, *, functional: Optional[str | Path] = None,
+                    force: bool = False) -> list:
+    """The TCA task-tree events of a trace as the spec says them (``tca-check --model``): the trace
+    is replayed on ``model``, and each step's ROAR events and the sequential-achievement pairs
+    are the model's, not the file's; only the steps' times are read from the trace."""
+    from ..tca.roar_runs import task_tree_events
+    rep = replay_trace(path, model, functional=functional, force=force)
+    if rep.compiled is None:
+        raise RoarError(f"--model {model}: tca-check reads a task tree from a ROAR spec's trace; "
+                        "this is a CLF model")
+    records = read_trace(path)[1]
+    header = {**rep.header, "seq_pairs": [[p.a, p.b, p.where, p.a_text, p.b_text]
+                                          for p in sequential_pairs(rep.compiled)]}
+    derived = []
+    for rec, step in zip(records, rep.steps):
+        evs = step["events"]
+        derived.append({"step": step["step"], "time": rec.get("time"),
+                        "event": (evs[0] if len(evs) == 1 else {"kind": "several", "events": evs}) if evs else None})
+    return task_tree_events(header, derived, str(path))

@@ -162,3 +162,31 @@ def test_a_run_of_the_fixed_plan_is_a_conforming_task_tree_with_its_tasks(tmp_pa
     assert [m.parent for m in tree.values() if m.kind == "command"] == ["R1", "R0.grasp"]   # park(), close()
     assert [(d.m1, d.m2) for d in report.tree.declared] == [("R0.approach", "R0.grasp")]
     assert '"R0.approach" -> "R0.grasp" [style=dashed' in dot.read_text()
+
+
+def test_tca_check_with_the_model_reads_the_task_tree_from_the_spec_not_the_file(tmp_path, roar_cli):
+    """A counterexample whose header pairs were emptied checks clean as recorded (and says it
+    read the file as recorded, naming no pairs); replayed on the spec (--model) its pairs are the
+    model's and the violation is back. Garbled pairs and time going back are refused."""
+    import json
+    trace = _trace(tmp_path, "seq_plan.roar")
+    lines = trace.read_text(encoding="utf-8").splitlines()
+    header = json.loads(lines[0])
+    emptied = tmp_path / "emptied.jsonl"
+    emptied.write_text("\n".join([json.dumps({**header, "seq_pairs": []})] + lines[1:]) + "\n", encoding="utf-8")
+    code, out, _err = roar_cli("tca-check", emptied)
+    assert code == 0 and "as recorded" in out and "names no sequential-achievement pairs" in out
+    code, out, err = roar_cli("tca-check", emptied, "--model", DATA / "seq_plan.roar", "--functional", TOOLS)
+    assert code == 1 and "SeqAch(R0.approach, R0.grasp)" in out and "as recorded" not in out, err
+    # the unedited trace: the same verdict either way
+    assert roar_cli("tca-check", trace, "--model", DATA / "seq_plan.roar", "--functional", TOOLS)[0] == 1
+    garbled = tmp_path / "garbled.jsonl"
+    garbled.write_text("\n".join([json.dumps({**header, "seq_pairs": "all"})] + lines[1:]) + "\n", encoding="utf-8")
+    code, _out, err = roar_cli("tca-check", garbled)
+    assert code == 2 and f"{garbled}:1:1: expected \"seq_pairs\"" in err
+    recs = [json.loads(x) for x in lines[1:]]
+    recs[3]["time"], recs[4]["time"] = 5.0, 1.0
+    back = tmp_path / "back.jsonl"
+    back.write_text("\n".join(json.dumps(x) for x in [header] + recs) + "\n", encoding="utf-8")
+    code, _out, err = roar_cli("tca-check", back)
+    assert code == 2 and f"{back}:6:1: step {recs[4]['step']}'s time 1.0 is before the step before it" in err
