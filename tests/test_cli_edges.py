@@ -242,3 +242,14 @@ def test_a_rule_with_a_head_only_variable_is_refused_at_the_rule(roar_cli, tmp_p
     code, out, err = roar_cli("check", tmp_path / "j.toml", "--max-seconds", "60")
     assert code == 2
     assert f"{tmp_path / 'm.clf'}:3:1: rule 'r' uses variable Q only in its head" in out + err
+
+
+def test_backend_ground_on_a_model_it_cannot_run_points_at_the_line(roar_cli, tmp_path):
+    (tmp_path / "m.clf").write_text("a : type. n : type. b : n -> type.\nr : a -o {Exists x. b x}.\n#exec * a.\n",
+                                    encoding="utf-8")
+    (tmp_path / "j.toml").write_text('model = "m.clf"\n\nbackend = "ground"\n[expect]\ndeadlock = "violated"\n',
+                                     encoding="utf-8")
+    code, out, err = roar_cli("check", tmp_path / "j.toml")
+    assert code == 2
+    assert (f"{tmp_path / 'j.toml'}:3:11: backend 'ground' cannot run this model: rule 'r' makes fresh names"
+            in out + err)

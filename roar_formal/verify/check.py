@@ -16,7 +16,7 @@ from typing import Callable, Optional
 
 from ..clf.context import Context
 from ..clf.query import with_big_stack
-from ..errors import RoarError
+from ..errors import Pos, RoarError
 from ..explore.graph import StateGraph
 from ..explore.ground import GroundExplorer, GroundModel, GroundingStopped, NotGround
 from ..explore.properties import check_states, Verdict, check_deadlock, check_livelock
@@ -59,7 +59,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
     check_progress_rules(props, program, spec=False)
     options = Options(progress_rules=tuple(props.progress), fairness=props.fairness, canonical=job.canonical)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
-                             "[deadlock] accept") if props.accept else None
+                             "[deadlock] accept", props.accept_at) if props.accept else None
     never = make_never(Path(job.model).read_text(encoding="utf-8"), str(job.model), props.never) \
         if "invariant" in props.check else None
     ground_model = None
@@ -71,7 +71,9 @@ def _run_job(job: Job, on_progress) -> JobResult:
             ground_model = GroundModel(program, start, options, budget=job.budget, deadline=deadline)
         except NotGround as exc:
             if job.backend == "ground":
-                raise RoarError(f"{job.path}: backend 'ground' cannot run this model: {exc}") from None
+                raise RoarError(f"backend 'ground' cannot run this model: {exc}; drop the line (or write \"auto\") "
+                                "to run it on the general backend",
+                                job.backend_at or Pos(str(job.path), 1, 1)) from None
         except GroundingStopped as exc:
             grounding_stopped = str(exc)
     backend = "ground" if ground_model is not None or grounding_stopped else "general"

@@ -40,6 +40,7 @@ class PropertySpec:
     fairness: str = "first-argument"
     strong: bool = False   # livelock under strong fairness ([livelock] strength = "strong")
     accept: Optional[str] = None  # a positive CLF type: quiescent states matching it are final
+    accept_at: Optional[Pos] = None  # where its text starts (inside the quotes)
     sources: list[str] = field(default_factory=list)
     fairness_given: bool = False
     never: list[tuple[str, Pos]] = field(default_factory=list)   # invariant: patterns no reachable state matches
@@ -102,6 +103,7 @@ class Job:
     request: Optional[str] = None      # the request the spec is run on
     request_at: Optional[Pos] = None   # where its text is written (errors inside it are reported there)
     start_at: Optional[Pos] = None     # where 'start' is written
+    backend_at: Optional[Pos] = None   # where 'backend' is written (None: the default)
     functional: Optional[Path] = None  # the functional-layer module (outcomes of the primitives)
     robot: Optional[RobotSetup] = None  # robot-backed: the reference robot is the functional layer
     crashes: Any = None                 # [faults]: roar.compile.Crashes, the agents that may crash (None: none)
@@ -297,7 +299,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
             if looks_like_spec(pat):
                 spec.spec_never.append(parse_formula(pat, _string_pos(path, "never", pat), temporal=False))
             else:
-                spec.never.append((pat, Pos(str(path), _line_of(path, "never"), 1)))
+                spec.never.append((pat, _string_pos(path, "never", pat)))
         alw = _typed(inv, "always", list, path, "[invariant]") if "always" in inv else []
         for pat in alw:
             if not isinstance(pat, str) or not pat.strip():
@@ -351,6 +353,7 @@ def load_properties(path: Path, into: Optional[PropertySpec] = None) -> Property
         _expect_keys(dl, {"accept"}, "[deadlock]", path)
         if "accept" in dl:
             spec.accept = _typed(dl, "accept", str, path, "[deadlock]")
+            spec.accept_at = _string_pos(path, "accept", spec.accept)
     spec.sources.append(str(path))
     return spec
 
@@ -686,6 +689,8 @@ def load_job(path: str | Path) -> Job:
                     raise RoarError(f"'{key}' must be one of {', '.join(allowed)}, not '{v}'",
                                     Pos(str(path), _line_of(path, key), 1))
                 setattr(job, key, v)
+                if key == "backend":
+                    job.backend_at = _value_pos(path, key)
                 bad.discard(key)
     with collecting(errs):
         if job.backend == "ground" and "spec" in d:

@@ -11,7 +11,7 @@ from ..clf.parser import parse_expr
 from ..clf.forward import enabled_steps
 from ..clf.program import Program
 from ..clf.signature import Elaborator, ExecDirective, Signature, extend_signature
-from ..errors import RoarError, did_you_mean
+from ..errors import Pos, RoarError, did_you_mean
 from .jobs import Job
 from ..explore.system import Options
 
@@ -43,14 +43,30 @@ def refuse_open_heads(program: Program) -> None:
                             info.pos if info is not None else None)
 
 
-def make_accept(program: Program, text: str, where: str) -> Callable[[Context], bool]:
+def inside(at: Optional[Pos], pos: Optional[Pos]) -> Optional[Pos]:
+    """A position ``pos`` in a one-line text, as a position in the file where the text is
+    written starting at ``at`` (None: where it is written is not known)."""
+    if at is None:
+        return pos
+    if pos is None or pos.line != 1:
+        return at
+    return Pos(at.file, at.line, at.col + pos.col - 1)
+
+
+def make_accept(program: Program, text: str, where: str, at: Optional[Pos] = None) -> Callable[[Context], bool]:
     """A final-state test from a positive CLF type: the context must match it exactly
-    (every linear fact accounted for; affine ones may be left over)."""
-    expr = parse_expr(text, file=where)
-    el = Elaborator(program.sig)
-    el._begin()
-    s = el.pos(expr)
-    el._solve_postponed(expr.pos)
+    (every linear fact accounted for; affine ones may be left over). ``at``: where the text is
+    written (an error inside it is reported there)."""
+    try:
+        expr = parse_expr(text, file=where)
+        el = Elaborator(program.sig)
+        el._begin()
+        s = el.pos(expr)
+        el._solve_postponed(expr.pos)
+    except RoarError as e:
+        if at is None:
+            raise
+        raise RoarError(f"accept pattern {text!r}: {e.message}", inside(at, e.pos), e.notes) from None
     for x in el.evars:
         x.scope = 1 << 62  # pattern variables may stand for fresh names
 

@@ -62,7 +62,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
             reduction = "on"
             reduction_options(options, props, never)
     accept_ctx = make_accept(program, props.accept, f"{props.sources[0] if props.sources else job.path} "
-                             "[deadlock] accept") if props.accept else roar_final
+                             "[deadlock] accept", props.accept_at) if props.accept else roar_final
 
     def decide(graph: StateGraph, states: list, system: RoarSystem, ctx_of, step_of) -> dict[str, Verdict]:
         verdicts: dict[str, Verdict] = {}

@@ -12,6 +12,7 @@ import pytest
 from roar_formal.clf.printer import show
 from roar_formal.clf.program import Program
 from roar_formal.clf.state import canonical_key
+from roar_formal.errors import RoarError
 from roar_formal.verify.check import run_job, save_counterexample
 from roar_formal.verify.jobs import load_job
 from roar_formal.verify.replay import replay_trace
@@ -86,3 +87,19 @@ def test_a_deadlock_trace_carries_the_accept_pattern_and_replay_re_decides_it(tm
     forged.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n", encoding="utf-8")
     rep = replay_trace(forged, tmp_path / "coins.clf")
     assert rep.confirmed is False and "accept" in rep.confirmation
+
+
+@pytest.mark.parametrize("section, key, text, message", [
+    ("deadlock", "accept", "done c1", "accept pattern 'done c1': type family 'done' takes 2 arguments, given 1"),
+    ("invariant", "never", "done c1 X * dnoe c2 Y", "invariant pattern 'done c1 X * dnoe c2 Y': unknown type family"),
+])
+def test_a_bad_pattern_is_located_inside_its_string(tmp_path: Path, section, key, text, message):
+    (tmp_path / "coins.clf").write_text(MODEL)
+    value = f'"{text}"' if key == "accept" else f'["{text}"]'
+    (tmp_path / "p.toml").write_text(f'check = ["{section}"]\n\n[{section}]\n{key} = {value}\n')
+    (tmp_path / "j.toml").write_text('model = "coins.clf"\nproperties = ["p.toml"]\n')
+    with pytest.raises(RoarError) as e:
+        run_job(load_job(tmp_path / "j.toml"))
+    col = len(f"{key} = ") + (3 if key == "never" else 2)
+    pos = e.value.pos
+    assert (pos.file, pos.line, pos.col) == (str(tmp_path / "p.toml"), 4, col) and message in e.value.message
