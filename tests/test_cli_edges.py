@@ -253,3 +253,14 @@ def test_backend_ground_on_a_model_it_cannot_run_points_at_the_line(roar_cli, tm
     assert code == 2
     assert (f"{tmp_path / 'j.toml'}:3:11: backend 'ground' cannot run this model: rule 'r' makes fresh names"
             in out + err)
+
+
+def test_a_livelock_job_on_a_clf_model_needs_progress_rules_as_the_command_line_does(roar_cli, tmp_path):
+    """Without progress rules every cycle is a livelock: the command line refused; a job ran."""
+    (tmp_path / "m.clf").write_text("a : type. b : type.\nab : a -o {b}.\nba : b -o {a}.\n#exec * a.\n",
+                                    encoding="utf-8")
+    (tmp_path / "j.toml").write_text('model = "m.clf"\n[expect]\nlivelock = "holds"\n', encoding="utf-8")
+    code, out, err = roar_cli("check", tmp_path / "j.toml")
+    assert code == 2 and f"{tmp_path / 'j.toml'}:3:1: " in err and "needs its progress rules" in err
+    code, out, err = roar_cli("check", tmp_path / "m.clf", "--property", "livelock")
+    assert code == 2 and "needs its progress rules" in err

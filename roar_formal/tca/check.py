@@ -432,6 +432,8 @@ AS_RECORDED = ("the task tree is read from the trace's own event fields and head
 def check_trace(path, events: Optional[list[Event]] = None) -> CheckReport:
     """Read a trace and check it (``events``: its task-tree events, already read from a model's
     replay). A trace with no task-tree message is an error, not a pass: nothing was checked."""
+    from ..inputs import check_input_file
+    check_input_file(path, Pos(str(path), 1, 1))   # before any open: a FIFO would block it
     notes = []
     header = _roar_header(path)
     if events is None:

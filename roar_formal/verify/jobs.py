@@ -807,6 +807,10 @@ def load_job(path: str | Path) -> Job:
         raise RoarError(*at("invariant", "property 'invariant' needs patterns: [invariant] never = [\"...\"] in a "
                                          "property file (on a spec, predicates in the spec's terms: never = "
                                          "[\"...\"] or always = [\"...\"])"))
+    if "livelock" in job.props.check and not job.is_roar and not job.props.progress:
+        raise RoarError(*at("livelock", "property 'livelock' on a .clf model needs its progress rules: [livelock] "
+                                        "progress = [\"rule\", ...] in a property file (without them every cycle "
+                                        "is a livelock)"))
     if not job.props.check:
         raise RoarError("the job checks nothing: name properties in 'check' of a property file or in [expect]",
                         Pos(str(path), 1, 1))

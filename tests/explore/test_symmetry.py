@@ -129,10 +129,12 @@ def test_job_option_bad_value_is_located():
 
 def test_cycle_properties_are_refused_at_the_option(tmp_path):
     shutil.copy(DATA / "mutex3.clf", tmp_path / "mutex3.clf")
-    p = job_file(tmp_path, 'model = "mutex3.clf"\nsymmetry = true\n[expect]\nlivelock = "holds"\n')
+    job_file(tmp_path, 'check = ["livelock"]\n[livelock]\nprogress = ["enter"]\n', "p.toml")
+    p = job_file(tmp_path, 'model = "mutex3.clf"\nsymmetry = true\nproperties = ["p.toml"]\n[expect]\n'
+                           'livelock = "holds"\n')
     with pytest.raises(RoarError) as e:
         load_job(p)
-    assert "livelock" in e.value.message and e.value.pos.line == 2
+    assert "symmetry reduction does not keep" in e.value.message and e.value.pos.line == 2
 
 
 def test_invariant_naming_a_permuted_constant_is_refused_where_it_is_written(tmp_path):
