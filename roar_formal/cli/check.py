@@ -345,12 +345,13 @@ def _budget_hint(short: list) -> str:
     out = f"a budget ran out before a verdict; raise it ({', '.join(opts)}, or a job's [bounds]); "
     if any("memory budget" in x for x in reasons):
         # hash compaction and bitstate save memory, not time; bitstate decides no property read on cycles
-        modes = ("visited = \"hash\"" if any(cycle_properties(x.job) for x in short) else
-                 "visited = \"hash\" or \"bitstate\"")
-        return (out + f"for a model too large to exhaust, a job file's {modes} (less memory a state, not "
-                "verified), or search = \"swarm\" (bug hunting) (docs/checking.md, Choosing a search mode)")
-    return (out + "for a model too large to exhaust in time, a job file's search = \"swarm\" (bug hunting: it "
-            "finds violations sooner, it never verifies) (docs/checking.md, Choosing a search mode)")
+        modes = ("--visited hash" if any(cycle_properties(x.job) for x in short) else
+                 "--visited hash or bitstate")
+        return (out + f"for a model too large to exhaust, {modes} (less memory a state, not verified), or "
+                "--search swarm (bug hunting); a job file's visited and search keys say the same (docs/checking.md, "
+                "Choosing a search mode)")
+    return (out + "for a model too large to exhaust in time, --search swarm (or a job file's search = \"swarm\"; "
+            "bug hunting: it finds violations sooner, it never verifies) (docs/checking.md, Choosing a search mode)")
 
 
 def _summary(console: Console, results) -> None:

@@ -575,7 +575,13 @@ class GroundExplorer:
             lo = 0
             size = chunk
             while lo < f_n:
-                hi = min(f_n, lo + size)
+                take = size
+                if budget.max_states is not None:   # near the state budget: a chunk of the states it has left
+                    if n_states >= budget.max_states:
+                        stop = f"state budget of {budget.max_states} reached"
+                        break
+                    take = min(size, budget.max_states - n_states)
+                hi = min(f_n, lo + take)
                 sub = f_rows[:, lo:hi]
                 flat = np.flatnonzero(np.ascontiguousarray(self._enabled(sub).T))
                 s_loc = flat >> self.slot_bits  # by source state, then instance: discovery order

@@ -115,7 +115,7 @@ def search_rounds(job: Job, t0: float, explorer, decide):
 
 def swarm(job: Job, t0: float, explore, options: Options):
     """Search = "swarm": up to ``job.swarm_runs`` depth-first searches, each taking successors in
-    its own random order and visiting at most ``job.swarm_states`` states, until one finds a
+    its own random order and stopping once it holds ``job.swarm_states`` states, until one finds a
     violation (its counterexample is real but not the shortest) or covers the whole state space
     (then the verdicts are those of a complete search). Otherwise no verdict is "holds": the
     properties not found violated are "incomplete", with what the swarm covered."""
@@ -171,8 +171,8 @@ def swarm(job: Job, t0: float, explore, options: Options):
     for p, v in verdicts.items():
         if not v.violated:
             verdicts[p] = Verdict(p, "incomplete",
-                                  f"no violation found by {runs} ({total:,} states visited in all, at most "
-                                  f"{job.swarm_states:,} each"
+                                  f"no violation found by {runs} ({total:,} states visited in all, each search "
+                                  f"stopping at {job.swarm_states:,}"
                                   + ((f"; {job.swarm_runs - done} did not run: the {stop}" if done < job.swarm_runs
                                       else f"; the {stop}") if stop else "")
                                   + "): a bug-hunting result, not verified",
