@@ -308,8 +308,9 @@ def _short(reason: str, check=("deadlock",)):
 @pytest.mark.parametrize("reason,check,has,lacks", [
     ("time budget of 5 s reached", ("deadlock",), ["--max-seconds", 'search = \"swarm\"'], ["hash", "bitstate"]),
     ("state budget of 9 reached", ("deadlock",), ["--max-states", "swarm"], ["hash", "bitstate"]),
-    ("memory budget of 300 MiB reached", ("deadlock",), ["--max-memory", '"hash\" or \"bitstate\"'], []),
-    ("memory budget of 300 MiB reached", ("deadlock", "livelock"), ['visited = \"hash\"'], ["bitstate"]),
+    ("memory budget of 300 MiB reached", ("deadlock",), ["--max-memory", "--visited hash or bitstate"], []),
+    ("memory budget of 300 MiB reached", ("deadlock", "livelock"), ["--visited hash", "--search swarm"],
+     ["bitstate"]),
 ])
 def test_the_budget_hint_offers_only_modes_that_help(reason, check, has, lacks):
     """Hash compaction and bitstate save memory, not time; bitstate decides no property read on
