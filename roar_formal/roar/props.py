@@ -1254,4 +1254,10 @@ class SpecChecks:
         cut = None
         if self.cut is not None:
             cut = np.fromiter((bool(self.cut(i)) for i in range(len(views))), dtype=bool, count=len(views))
-        return check_eventually(g, p, target, seeds, why_end, why_cycle, holds, cut, strong, target_edges)
+        verdict = check_eventually(g, p, target, seeds, why_end, why_cycle, holds, cut, strong, target_edges)
+        if leads is not None and verdict.status == "holds" and not seeds[:g.n_states].any():
+            # no run ever meets the trigger: the property checked nothing
+            verdict.message = (f"vacuously: no reachable state {'follows a step where' if f.p_events else 'satisfies'}"
+                               f" {f.p.text!r} ({g.n_states:,} states)")
+            verdict.details["vacuous"] = f"{f.p.text!r} is never reached"
+        return verdict

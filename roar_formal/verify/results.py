@@ -35,6 +35,9 @@ class JobResult:
         properties the job expects nothing of (a violation is an error unless [expect] says so)."""
         out = list(self.mismatches)
         for p, v in self.verdicts.items():
+            if v.status == "holds" and v.details.get("vacuous"):
+                out.append(f"{p}: holds only vacuously ({v.details['vacuous']}): it checked nothing; if the trigger "
+                           "is meant to be unreachable, say so with an invariant (never = [...])")
             if p not in self.job.expect and v.status == "violated":
                 if "command line" in self.job.props.sources:   # (no job file: nothing can be expected)
                     out.append(f"{p}: violated: a check from the command line expects every property to hold "

@@ -777,3 +777,18 @@ def test_states_that_read_alike_share_one_view_and_others_do_not():
     assert _view_key(view({("a", "x"): [1, 2]})) != _view_key(view({("a", "x"): (1, 2)}))
     assert _view_key(view({}, {("arm", "t"): {"go"}})) != _view_key(view({}, {("arm", "t"): {"paused"}}))
     assert _view_key(view({("a", "x"): 1, ("a", "y"): 2})) == _view_key(view({("a", "y"): 2, ("a", "x"): 1}))
+
+
+def test_leads_to_whose_trigger_is_never_reached_holds_only_vacuously_and_fails_the_job(tmp_path):
+    """``P leads-to Q`` with no reachable P state checked nothing: the verdict says so and the job
+    fails (the oracle agrees P is unreachable); a reachable trigger is an ordinary holds."""
+    o = oracle(CAMERA_BOUNDED)
+    assert not any(o.holds(lambda d: d["vars"]["camera::attempts"] == "9"))
+    res = run_job(load_job(_job(tmp_path, CAMERA_BOUNDED,
+                                '[temporal]\nprop = "camera::attempts == 9 leads-to camera::taken == true"\n')))
+    v = res.verdicts["prop"]
+    assert v.status == "holds" and "vacuously" in v.message and not res.ok
+    assert any("holds only vacuously" in u for u in res.unexpected)
+    res = run_job(load_job(_job(tmp_path, CAMERA_BOUNDED, '[temporal]\nprop = "agent ptu in running leads-to '
+                                                          'agent ptu in succeeded"\n', name="live")))
+    assert not res.verdicts["prop"].details.get("vacuous")
