@@ -677,6 +677,10 @@ def _confirm(header: dict, res: ReplayResult, compiled: Optional[CompiledModel])
     prop = header.get("property")
     final = res.states[-1]
     if header.get("shape") == "lasso" or res.cycle_closes is not None:
+        if res.cycle_closes and prop and not header.get("claim"):
+            return None, (f"the cycle returns to the state where it started, but the trace records no claim "
+                          f"(\"claim\" in its header), so whether it breaks '{prop}' is not re-decided: the "
+                          "counterexamples check writes carry their claim")
         if res.cycle_closes:
             return True, "the cycle returns to the state where it started: the run can repeat it forever"
         return False, "the trace's cycle does not return to the state where it started"

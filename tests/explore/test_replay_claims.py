@@ -142,3 +142,14 @@ def test_an_invariant_of_clf_patterns_is_re_decided(tmp_path, spec):
     rep = with_big_stack(lambda: replay_trace(bad, model))
     assert rep.confirmed is False, rep.confirmation
     assert ("matches none of the job's forbidden patterns" if not spec else "breaks none") in rep.confirmation
+
+
+def test_a_lasso_whose_claim_was_removed_is_not_confirmed_as_breaking_its_property(tmp_path):
+    """Without its claim a livelock trace can only show its cycle closes: replay says the
+    property is not re-decided (it said "confirmed")."""
+    res = checker_result("retry_forever.toml")
+    trace = save_counterexample(res, "livelock", tmp_path)
+    bare = _edit(trace, tmp_path / "bare.jsonl", header=lambda h: h.pop("claim"))
+    rep = with_big_stack(lambda: replay_trace(bare, FAULTY / "retry_forever.roar"))
+    assert rep.confirmed is None and "records no claim" in rep.confirmation and "'livelock'" in rep.confirmation
+    assert with_big_stack(lambda: replay_trace(trace, FAULTY / "retry_forever.roar")).confirmed is True
