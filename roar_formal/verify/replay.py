@@ -477,6 +477,15 @@ class _Replayed:
     # ------------------------------------------------------------ a step replay cannot take
     def locate(self, exc: RoarError) -> RoarError:
         """``exc`` at the line of the step being read, when it names no place of its own."""
+        if self.index is not None and self.index < len(self.records):
+            for k in range(self.index, -1, -1):   # the last gap in the numbering up to here
+                here = self.records[k].get("step")
+                before = self.records[k - 1].get("step") if k else 0
+                if type(here) is int and type(before) is int and here > before + 1:
+                    gap = f"{before + 1}" if here == before + 2 else f"{before + 1} to {here - 1}"
+                    exc.notes.append(f"the trace has no step {gap}: a step missing from a trace makes the steps "
+                                     "after it fail to replay")
+                    break
         if exc.pos is not None or self.index is None or self.index >= len(self.lines):
             return exc
         prefix = f"{self.path}: "

@@ -297,3 +297,17 @@ def test_a_trace_whose_events_were_edited_is_refused_at_that_line(roar_cli, tmp_
     with pytest.raises(RoarError) as e:
         replay_trace(out, MUTUAL[0])
     assert e.value.pos.line == quiet + 2 and "makes no event" in e.value.message
+
+
+def test_a_step_missing_from_a_trace_is_named_where_the_replay_stops(roar_cli, tmp_path):
+    trace, header, records, _out = _cli_run_and_replay(roar_cli, tmp_path, MUTUAL)
+    out = tmp_path / "dropped.jsonl"
+    for k in range(1, len(records) - 1):   # the first record whose loss the next step notices
+        _write(out, header, records[:k] + records[k + 1:])
+        try:
+            replay_trace(out, MUTUAL[0])
+        except RoarError as e:
+            assert e.pos.line == k + 2   # the record after the gap (header on line 1)
+            assert f"the trace has no step {records[k]['step']}: a step missing" in e.format()
+            return
+    raise AssertionError("no dropped step was noticed")
