@@ -105,7 +105,13 @@ def register(app: typer.Typer) -> None:
         from ..tca.prover import dependencies, prove
 
         console = make_console()
-        rows = _select(_obligations(list(model or [])), list(theorems or []))
+        every = _obligations(list(model or []))
+        rows = _select(every, list(theorems or []))
+        left = [name for name, _ob, _m in every if ":" in name and all(name != r[0] for r in rows)]
+        if theorems and model and left:   # --model given, but the names chosen leave its claims out
+            console.print(f"note: {len(left)} claim(s) of --model not run, since obligations were named "
+                          f"({', '.join(left[:4])}{', ...' if len(left) > 4 else ''}); name them too, or name none "
+                          "to run everything")
         if list_only:
             console.print(_list_table(rows))
             return

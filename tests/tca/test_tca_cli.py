@@ -111,3 +111,14 @@ def test_a_misspelt_obligation_gets_a_suggestion(capsys):
         code = exc.code
     err = capsys.readouterr().err
     assert code == 2 and "no obligation named seq_ahc (did you mean 'seq_ach'?)" in err
+
+
+def test_prove_with_a_model_and_named_obligations_says_which_claims_it_left_out(app):
+    result = run(app, "prove", "--model", AMBLER, "seq_ach", "ambler-walking:steps_in_order")
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert "note: 5 claim(s) of --model not run" in text and "steps_in_order" in text.split("TCA proof")[1]
+    assert "note:" not in " ".join(run(app, "prove", "--model", AMBLER, "seq_ach", *[
+        f"ambler-walking:{c}" for c in ("at_most_one_step_ahead", "next_plan_waits_for_leg", "steps_in_order",
+                                        "never_plans_during_body_move", "arcs_not_planned_ahead",
+                                        "at_least_one_step_ahead")]).output.split())
