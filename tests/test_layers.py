@@ -22,7 +22,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "roar_formal"
 
-RANK = {"errors": 0, "lines": 0, "inputs": 1, "clf": 2, "trace": 3, "tca": 4, "explore": 4, "roar": 5,
+RANK = {"errors": 0, "lines": 0, "inputs": 1, "outputs": 1, "clf": 2, "trace": 3, "tca": 4, "explore": 4, "roar": 5,
         "robot": 6, "verify": 7, "testing": 8, "cli": 9, "fuzz": 10}
 TERMINAL = ("typer", "rich", "click")
 
