@@ -176,6 +176,16 @@ def _caller_pos() -> Pos:
     return Pos(f.f_code.co_filename, f.f_lineno, 1)
 
 
+def _from_command_line() -> bool:
+    """Was this call made by ``roar-verify`` (whose options have no file to point at)?"""
+    f = sys._getframe(1)
+    while f is not None:
+        if f.f_globals.get("__name__", "").startswith("roar_formal.cli"):
+            return True
+        f = f.f_back
+    return False
+
+
 def _written_at(pos: Pos, text: str) -> Pos:
     """Where the string literal ``text`` is written on the caller's line (inside its quotes, as
     patterns are located), or ``pos`` itself when the line does not show it."""
@@ -323,7 +333,7 @@ class AgentSpec:
                              time, wait_timeout)
         except RoarError as exc:
             # a fault the spec cannot use (the command line's message): located where the test writes it
-            if exc.pos is None and exc.message.startswith("--fault "):
+            if exc.pos is None and exc.message.startswith("--fault ") and not _from_command_line():
                 name = exc.message[len("--fault "):].split(":", 1)[0].split(",", 1)[0]
                 written = next((t for t in texts if t == name or t.startswith(name)), name)
                 raise RoarError(exc.message, _written_at(_caller_pos(), written), exc.notes) from None

@@ -188,3 +188,8 @@ def test_a_binding_that_returns_another_type_is_a_located_error_on_the_robot(cli
     assert code == 2, out
     assert f"error: {spec}:33:20: primitive 'planner::compute_path' returned 'yes', but it is declared to return" \
         in err and "Traceback" not in err
+
+
+def test_a_misspelt_fault_on_the_command_line_is_not_located_in_the_cli_code(cli, capsys):
+    code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--fault", "door_clses")
+    assert code == 2 and err.startswith("error: --fault 'door_clses'") and ".py:" not in err
