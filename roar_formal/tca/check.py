@@ -452,17 +452,16 @@ def check_trace(path, events: Optional[list[Event]] = None) -> CheckReport:
 
 
 def _roar_header(path) -> Optional[dict]:
-    """The header of a ROAR trace (None: a file of TCA records only)."""
-    from ..trace.format import read_trace
+    """The header of a ROAR trace (None: a file of TCA records only): its first line alone (the
+    whole file is read, with its errors located, by :func:`read_task_tree`)."""
+    import json
     from .roar_runs import is_roar_trace
     try:
         with Path(path).open(encoding="utf-8") as handle:
-            if '"roar-formal"' not in handle.readline():
-                return None
-    except (OSError, UnicodeDecodeError):
+            header = json.loads(handle.readline())
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
         return None
-    header = read_trace(path)[0]
-    return header if is_roar_trace(header) else None
+    return header if isinstance(header, dict) and is_roar_trace(header) else None
 
 
 def _named(m: Message) -> str:
