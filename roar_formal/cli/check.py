@@ -202,7 +202,8 @@ def register(app: typer.Typer) -> None:
                                          help="Step through the trace: next, back, jump, state, agent, end, quit."),
         on_robot: Optional[Path] = typer.Option(None, "--on-robot", help="Drive the reference robot of this "
                                                 "scenario through the counterexample (needs --model SPEC)."),
-        seed: int = typer.Option(0, "--seed", help="With --on-robot: the robot's seed."),
+        seed: Optional[int] = typer.Option(None, "--seed", help="With --on-robot: the robot's seed (default: the "
+                                           "scenario's)."),
         fault: List[str] = typer.Option([], "--fault", help="With --on-robot: a fault point of the scenario."),
         loops: int = typer.Option(3, "--loops", help="With --on-robot: how many times to drive a lasso's cycle."),
         png: Optional[Path] = typer.Option(None, "--png", help="Draw the trace's message sequence chart here (PNG); "

@@ -25,7 +25,8 @@ def register(app: typer.Typer) -> None:
         spec: Path = typer.Argument(..., help="A spec: a .roar file, a hyper .ability file, or a hyper folder."),
         scenario: Path = typer.Option(..., "--scenario", "-s", help="The robot's world (TOML, models/scenarios/)."),
         request: str = typer.Option(..., "--request", "-r", help="The constraint to enforce."),
-        seed: int = typer.Option(0, "--seed", help="Seed of the scheduler and of every noise term."),
+        seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the scheduler and of every noise term "
+                                           "(default: the scenario's seed)."),
         fault: list[str] = typer.Option([], "--fault", help="Turn on a fault point of the scenario (door_closes), "
                                         "or make a primitive fail (NAME, NAME:K, NAME=OUTCOME). Repeatable."),
         functional: Optional[Path] = typer.Option(None, "--functional",
@@ -71,7 +72,8 @@ def register(app: typer.Typer) -> None:
         scenario: Path = typer.Option(..., "--scenario", "-s", help="The robot's world (TOML)."),
         request: str = typer.Option(..., "--request", "-r", help="The constraint to enforce."),
         runs: int = typer.Option(10, "--runs", "-n", help="Number of seeded runs."),
-        seed: int = typer.Option(0, "--seed", help="Seed of the first run (run k uses seed + k)."),
+        seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the first run (run k uses seed + k; "
+                                           "default: the scenario's seed)."),
         fault: list[str] = typer.Option([], "--fault", help="Fault points always on (others are drawn at random)."),
         no_random_faults: bool = typer.Option(False, "--no-random-faults",
                                               help="Do not draw fault points at random."),
@@ -123,7 +125,7 @@ def _writing(path: Path, write) -> None:
         raise RoarError(f"{path}: cannot write: {exc.strerror or exc}") from None
 
 
-def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], seed: int, fault: list[str],
+def replay_robot(trace: Path, model: Optional[Path], on_robot: Optional[Path], seed: Optional[int], fault: list[str],
                  loops: int, png: Optional[Path], functional: Optional[Path], force: bool) -> int:
     """``roar-verify replay`` for robot traces (``--model SPEC``) and for counterexamples on the robot
     (``--on-robot SCENARIO``). Returns the exit status. Only the spec named on the command line is

@@ -440,10 +440,13 @@ class ConformReport:
         return out
 
 
-def conform(spec_ast, request: str, model, binding, scenario, runs: int = 10, seed: int = 0, always=(),
+def conform(spec_ast, request: str, model, binding, scenario, runs: int = 10, seed: Optional[int] = None, always=(),
             random_faults: bool = True, max_steps: int = 200_000, spec_name: str = "spec",
             on_run: Optional[Callable[[int, RunSummary], None]] = None) -> ConformReport:
-    """N seeded robot runs (random fault draws), each classified and replayed on the abstract model."""
+    """N seeded robot runs (random fault draws), each classified and replayed on the abstract model; run
+    ``k`` has seed ``seed + k``, ``seed`` by default the scenario's."""
+    if seed is None:
+        seed = scenario.seed
     from ..roar.compile import compile_spec
     from .sim import simulate
     from .report import step_records

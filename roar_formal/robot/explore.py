@@ -240,13 +240,13 @@ def _show(v) -> str:
 class RobotTree:
     """Robot states reached by launches and advances from the scenario's start, memoised."""
 
-    def __init__(self, model: CompiledModel, registry: Registry, scenario: Scenario, seed: int, faults_on=(),
+    def __init__(self, model: CompiledModel, registry: Registry, scenario: Scenario, seed: Optional[int], faults_on=(),
                  abstraction: Abstraction = Abstraction(), conditions=(), snapshot_cap: int = 4000,
                  live_cap: int = 8):
         self.model = model
         self.registry = registry
         self.scenario = scenario
-        self.seed = seed
+        self.seed = scenario.seed if seed is None else seed
         self.faults_on = tuple(faults_on)
         self.abstraction = abstraction
         self.conditions = list(conditions)
@@ -264,7 +264,7 @@ class RobotTree:
         self.uncovered: dict = {}         # (function, status, value) -> CallResult: results no declared outcome covers
         self.now_fc = {fc for fc, (owner, name) in model.functions.items() if owner is None and name == "now"}
         self._mid_bad: list = []          # robot invariants broken during the advance being computed
-        robot = Robot(scenario, seed=seed, faults=self.faults_on)
+        robot = Robot(scenario, seed=self.seed, faults=self.faults_on)
         self.root = self._node(None, ("start",), robot, ())
 
     # ------------------------------------------------------------------ nodes

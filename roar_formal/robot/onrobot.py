@@ -48,12 +48,13 @@ class OnRobot:
     calls: list = field(default_factory=list)
 
 
-def replay_on_robot(model, registry, scenario, records: list[dict], seed: int = 0, faults=(),
+def replay_on_robot(model, registry, scenario, records: list[dict], seed: Optional[int] = None, faults=(),
                     loops: int = 3, on_line: Optional[Callable[[str], None]] = None, stuck: bool = True) -> OnRobot:
     """Drive ``model`` (compiled in run mode) on the robot in the order of the counterexample ``records``.
     A counterexample without a cycle is realised when every step happened on the robot and, with
     ``stuck`` (a deadlock's), the robot run is stuck where it ends; a path to a state a safety
-    property forbids (``stuck`` false) is realised once that state is reached."""
+    property forbids (``stuck`` false) is realised once that state is reached. ``seed`` is the
+    robot's (default: the scenario's)."""
     stem = [r for r in records if not r.get("loop")]
     cycle = [r for r in records if r.get("loop")]
     order = stem + cycle * max(1, loops) if cycle else stem
@@ -304,7 +305,7 @@ def replay_robot_path(model, registry, scenario, header: dict, records: list, lo
     judged the same under its abstraction (which the loops test)."""
     from .explore import start_call
     info = header.get("robot") or {}
-    robot = Robot(scenario, seed=int(info.get("seed", 0)), faults=tuple(info.get("on", ())))
+    robot = Robot(scenario, seed=None if info.get("seed") is None else int(info["seed"]), faults=tuple(info.get("on", ())))
     now_fc = {fc for fc, (owner, name) in model.functions.items() if owner is None and name == "now"}
     stem = [r for r in records if not r.get("loop")]
     cycle = [r for r in records if r.get("loop")]

@@ -197,11 +197,14 @@ def result_term(model: CompiledModel, values: Values, fc: str, res: CallResult):
         return const("vunit")
     return values.term(res.value, rty)
 
-def simulate(model: CompiledModel, registry: Registry, scenario: Scenario, seed: int = 0, faults=(),
+def simulate(model: CompiledModel, registry: Registry, scenario: Scenario, seed: Optional[int] = None, faults=(),
              prim_faults: Optional[list[Fault]] = None, max_steps: int = 200_000,
              on_event: Optional[Callable[[RoarEvent, float], None]] = None, snapshots: bool = False,
              robot: Optional[Robot] = None) -> SimResult:
-    """Run ``model`` on a request with ``registry``'s primitives on the robot of ``scenario``."""
+    """Run ``model`` on a request with ``registry``'s primitives on the robot of ``scenario``; ``seed``
+    (of the scheduler and of the robot's noise) is the scenario's unless given."""
+    if seed is None:
+        seed = scenario.seed
     sim = _Sim(model, registry, scenario, seed, tuple(faults), list(prim_faults or ()), max_steps, on_event,
                snapshots, robot)
     return sim.run()

@@ -308,7 +308,7 @@ class AgentSpec:
         return reg if reg is not None else self.registry()
 
     # -- running -----------------------------------------------------------------------
-    def run(self, request: str, *, seed: int = 0, faults: Iterable[FaultLike] = (), max_steps: int = 100_000,
+    def run(self, request: str, *, seed: Optional[int] = None, faults: Iterable[FaultLike] = (), max_steps: int = 100_000,
             fair: bool = False, strict_faults: Optional[bool] = None, scenario: Optional[PathLike] = None,
             crashes: Iterable[Any] = (), time: Any = None, wait_timeout: Optional[int] = None) -> "RunReport":
         """Run the spec on ``request`` to quiescence, as ``roar-verify run`` does (or, with a
@@ -325,6 +325,8 @@ class AgentSpec:
         ``crashes`` are ``AGENT@STEP`` or ``AGENT@STEP-BACK`` (``--crash``; docs/semantics.md, Crashes).
         ``time="timed"`` models the periods of wait, assert and ensure, a wait giving up after
         ``wait_timeout`` ms (``--time``, ``--wait-timeout``; docs/semantics.md, Time).
+        ``seed`` seeds the scheduler (default 0) and, on the robot, the noise (default: the
+        scenario's ``seed``); the report says the seed used.
         """
         faults, crashes = listed(faults), listed(crashes)   # (one string is one fault, one crash)
         texts = [f if isinstance(f, str) else str(f) for f in faults]   # as given: a run prints them so
@@ -354,6 +356,7 @@ class AgentSpec:
         parsed = parse_faults(texts)
         wanted = list(dict.fromkeys(parsed))
         scheduled = {f for t, f in zip(texts, parsed) if isinstance(t, ScheduledFault)}
+        seed = 0 if seed is None else seed
         model = self.compile(request, "python", crashes=crashes or None, time=time, wait_timeout=wait_timeout)
         _check_fault_names(wanted, self, model)
         res, unused = _run_tolerant(lambda fs: _run_model(model, seed, max_steps, self._run_registry(), fs, fair,
@@ -361,7 +364,7 @@ class AgentSpec:
         return RunReport(self.name, request, seed, tuple(texts), res, max_steps,
                          tuple(str(f) for f in unused), functional=self.functional)
 
-    def _simulate(self, request: str, scenario: Path, seed: int, faults: list[str], max_steps: int,
+    def _simulate(self, request: str, scenario: Path, seed: Optional[int], faults: list[str], max_steps: int,
                   strict_faults: Optional[bool]) -> "RunReport":
         from ..roar.compile import compile_spec
         from ..robot.binding import load_robot_binding
@@ -371,6 +374,8 @@ class AgentSpec:
         if self.text is not None and self.functional is None:
             raise RoarError("a spec given as text has no functional-layer module to bind to the robot")
         sc = load_scenario(scenario)
+        if seed is None:   # the scenario's seed is the robot's default
+            seed = sc.seed
         binding = load_robot_binding(self._file(), self.functional)
         model = compile_spec(self.ast, request, registry=binding.robot, functional="python",
                              request_at=_request_at(request))
@@ -454,7 +459,7 @@ class AgentSpec:
 
     def explore_on_robot(self, request: str, scenario: PathLike,
                          properties: Sequence[str] = ("deadlock", "livelock"), *,
-                         faults: Union[Sequence[str], dict] = (), on: Sequence[str] = (), seed: int = 0,
+                         faults: Union[Sequence[str], dict] = (), on: Sequence[str] = (), seed: Optional[int] = None,
                          quantise: Any = None, robot_never: Sequence[str] = (), robot_always: Sequence[str] = (),
                          never: Sequence[str] = (), progress: Sequence[str] = (), budget: BudgetLike = None,
                          compare: bool = False, name: Optional[str] = None) -> "Exploration":
@@ -463,7 +468,8 @@ class AgentSpec:
         the fault points ``faults`` (a list: armed at any call; a dict: fault point -> the
         primitives at whose calls it may be armed). ``quantise`` is ``"exact"``, a dict
         (position, heading, speed, clock, memory) or an ``Abstraction``; ``robot_never`` /
-        ``robot_always`` are conditions on the robot state (``"contact"``) checked at every tick."""
+        ``robot_always`` are conditions on the robot state (``"contact"``) checked at every tick.
+        ``seed`` is the robot's (default: the scenario's ``seed``)."""
         from ..verify.jobs import Job, PropertySpec, RobotSetup
         from ..robot.explore import Abstraction
         allowed = ROAR_PROPERTIES + ("robot-invariant",)
@@ -509,13 +515,13 @@ class AgentSpec:
         return _written(self.path, self.text) if self.text is not None else self.path
 
     # -- on the robot --------------------------------------------------------------------
-    def conform(self, request: str, scenario: PathLike, *, runs: int = 3, seed: int = 0, faults: Sequence[str] = (),
+    def conform(self, request: str, scenario: PathLike, *, runs: int = 3, seed: Optional[int] = None, faults: Sequence[str] = (),
                 random_faults: bool = True, max_steps: int = 200_000, on_run: Optional[Any] = None) -> Any:
         """``roar-verify conform``: seeded robot runs, each result classified into a declared outcome
         and each run replayed on the model; returns the robot's ``ConformReport`` (``.sound``,
         ``.lines()``, ``.as_json()``). ``faults`` are scenario fault points always on (the others are
         drawn at random unless ``random_faults`` is false); ``on_run(k, summary)`` is called after
-        run ``k`` (from 0)."""
+        run ``k`` (from 0). Run ``k`` has seed ``seed + k``, ``seed`` by default the scenario's."""
         from ..roar.compile import compile_spec
         from ..robot.binding import load_robot_binding
         from ..robot.setup import split_faults
@@ -531,7 +537,8 @@ class AgentSpec:
         if prims:
             raise RoarError("conform draws the scenario's fault points; primitive faults "
                             f"({', '.join(map(str, prims))}) are not allowed here")
-        return conform(self.ast, request, model, binding, sc, runs=runs, seed=seed, always=world,
+        return conform(self.ast, request, model, binding, sc, runs=runs, seed=sc.seed if seed is None else seed,
+                       always=world,
                        random_faults=random_faults, max_steps=max_steps, spec_name=self.name, on_run=on_run)
 
 

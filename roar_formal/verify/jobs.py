@@ -74,7 +74,7 @@ class RobotSetup:
     """A robot-backed job's [robot] table: the scenario and what the search may choose."""
 
     scenario: Path
-    seed: int = 0
+    seed: Optional[int] = None                     # None: the scenario's own seed
     faults: dict = field(default_factory=dict)   # fault point -> frozenset of primitive names, or None (any call)
     on: tuple = ()                                 # fault points on from the start (the scenario's timeline)
     quantise: Any = None                           # roar_formal.robot.explore.Abstraction

@@ -228,7 +228,7 @@ def run_robot_job(job: Job, on_progress: Optional[Callable[[dict], None]] = None
         return d
     graph.describe_edge = describe_edge
     graph.describe_steps = None   # (each step with the robot's time and pose where it ended)
-    run = RobotRun(tree, system, explorer, scenario, abstraction, dict(setup.faults), tuple(setup.on), setup.seed)
+    run = RobotRun(tree, system, explorer, scenario, abstraction, dict(setup.faults), tuple(setup.on), tree.seed)
     run.horizon_states = sum(1 for s in states if s.node.at_horizon)
     tag = "robot-backed, " + ("exact" if abstraction.exact else
                               f"quantised to {abstraction.position:g} m / {abstraction.heading:g} deg")

@@ -193,3 +193,28 @@ def test_a_binding_that_returns_another_type_is_a_located_error_on_the_robot(cli
 def test_a_misspelt_fault_on_the_command_line_is_not_located_in_the_cli_code(cli, capsys):
     code, out, err = cli(capsys, "simulate", DOOR, "-s", SCEN / "door.toml", "-r", DOOR_REQ, "--fault", "door_clses")
     assert code == 2 and err.startswith("error: --fault 'door_clses'") and ".py:" not in err
+
+
+def test_the_scenarios_seed_is_the_default_seed(cli, capsys, tmp_path):
+    """A scenario's `seed` key is its runs' seed unless --seed says otherwise (it was ignored: the
+    command line's default 0 overrode it)."""
+    text = (SCEN / "door.toml").read_text()
+    assert "\nseed = 0\n" in text
+    seeded = tmp_path / "door7.toml"
+    seeded.write_text(text.replace("\nseed = 0\n", "\nseed = 7\n", 1))
+    traces = {}
+    for name, argv in (("scenario", ["-s", seeded]), ("flag", ["-s", SCEN / "door.toml", "--seed", "7"]),
+                       ("zero", ["-s", SCEN / "door.toml"]), ("override", ["-s", seeded, "--seed", "0"])):
+        traces[name] = tmp_path / f"{name}.jsonl"
+        code, out, err = cli(capsys, "simulate", DOOR, *argv, "-r", DOOR_REQ, "--trace", traces[name])
+        assert code == 0, err
+    runs = {n: read_trace(p) for n, p in traces.items()}
+    assert runs["scenario"][0]["seed"] == runs["flag"][0]["seed"] == 7
+    assert runs["zero"][0]["seed"] == runs["override"][0]["seed"] == 0
+    poses = {n: [s["pose"] for s in steps] for n, (_h, steps) in runs.items()}
+    assert poses["scenario"] == poses["flag"] and poses["zero"] == poses["override"]
+    assert poses["scenario"] != poses["zero"]   # the noise differs: the seed was used
+    # conform's first run takes it too
+    code, out, err = cli(capsys, "conform", DOOR, "-s", seeded, "-r", DOOR_REQ, "--runs", "1", "--no-random-faults")
+    assert code == 0, err
+    assert "run 1/1: seed 7," in out
