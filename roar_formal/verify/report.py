@@ -104,8 +104,17 @@ def counterexample_lines(res, prop: str, verbose: bool = False) -> Lines:
             node = robot.explorer.states[v.counterexample.final_state].node
             x, y, th = node.pose
             armed = f"; faults armed: {', '.join(sorted(node.armed))}" if node.armed else ""
-            out.add(f"      robot    t = {node.time:.2f} s, at ({x:.2f}, {y:.2f}), heading "
-                    f"{th * 57.29577951308232:.0f} deg{armed}", wrap=True)
+            bad = node.bad[0] if prop == "robot-invariant" and node.bad else None
+            if bad is not None and bad[2] < node.time:   # broken during the last step's advance
+                bx, by, bth = bad[3]
+                out.add(f"      robot    t = {bad[2]:.2f} s, at ({bx:.2f}, {by:.2f}), heading "
+                        f"{bth * 57.29577951308232:.0f} deg: the invariant breaks here, during the last step, "
+                        "which the robot ends", wrap=True)
+                out.add(f"               at t = {node.time:.2f} s, at ({x:.2f}, {y:.2f}), heading "
+                        f"{th * 57.29577951308232:.0f} deg{armed}", wrap=True)
+            else:
+                out.add(f"      robot    t = {node.time:.2f} s, at ({x:.2f}, {y:.2f}), heading "
+                        f"{th * 57.29577951308232:.0f} deg{armed}", wrap=True)
     elif v.counterexample.kind == "path" and rep["final"] is not None:
         out.add("    final state: " + "; ".join(rep["final"]["facts"]), wrap=True)
     for pic in getattr(res, "pictures", {}).get(prop, ()):

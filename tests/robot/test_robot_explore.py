@@ -179,6 +179,12 @@ def test_check_png_draws_the_trajectory_with_the_violation_marked(roar_cli, tmp_
     assert code == 0, out + err
     pic = tmp_path / "bump_wall.robot-invariant.robot.png"
     assert pic.stat().st_size > 5000 and f"picture: {pic}" in out
+    # the robot is shown where the invariant broke (mid-advance), then where the step left it
+    broke = re.search(r"at t = (\d+\.\d\d) s \(contact = true\) during the advance", out)
+    shown = re.search(r"robot    t = (\d+\.\d\d) s, at .*: the invariant breaks here, during the last step"
+                      r"[^\n]*\n\s+at t = (\d+\.\d\d) s", out)
+    assert broke and shown, out
+    assert shown.group(1) == broke.group(1) and float(shown.group(2)) > float(shown.group(1))
 
 
 def test_robot_invariant_errors_are_located(tmp_path):
