@@ -158,7 +158,7 @@ def _confirm_accept(text, res: ReplayResult, path) -> tuple[Optional[bool], str]
         raise RoarError('expected "claim.accept" in the trace header to be a string', Pos(str(path), 1, 1))
     enabled = res.system.successors(res.states[-1])
     if enabled:
-        return False, (f"not a deadlock on this model: {len(enabled)} step(s) are enabled at the end "
+        return False, (f"not a deadlock: {len(enabled)} step(s) are enabled where the replayed path ends "
                        f"({', '.join(sorted({s.label for s in enabled})[:5])})")
     from .models import make_accept
     try:
@@ -175,7 +175,7 @@ def _confirm_clf(claim: dict, res: ReplayResult, k: Optional[int], path) -> Opti
         why = _never_patterns(claim, res, path)
         if why:
             return True, why
-        return False, "the final state matches none of the job's forbidden patterns on this model"
+        return False, "the replayed path's final state matches none of the job's forbidden patterns"
     rules = _texts(claim, "progress_rules", path)
     if k is None or "progress_rules" not in claim:
         return None
@@ -212,7 +212,7 @@ def _confirm_spec(claim: dict, prop, res: ReplayResult, k: Optional[int], m: Com
         why = incompatible_held(incompatible_pairs(m, declared, "the trace's claim"), held_tasks(m, states[-1]))
         if why:
             return True, f"in the final state {why}"
-        return False, "in the final state no two live requests hold incompatible tasks on this model"
+        return False, "in the replayed path's final state no two live requests hold incompatible tasks"
     if "always" in claim or "never" in claim or "never_patterns" in claim:
         end = views[-1]
         why = _never_patterns(claim, res, path)
@@ -229,14 +229,14 @@ def _confirm_spec(claim: dict, prop, res: ReplayResult, k: Optional[int], m: Com
                     return True, f"the last step satisfies never {t!r}"
             elif f.pf(end):
                 return True, f"the final state satisfies never {t!r}: {f.explain(end)}"
-        return False, "the final state breaks none of the job's invariants on this model"
+        return False, "the replayed path's final state breaks none of the job's invariants"
     if "formula" not in claim:
         return None
     f = _formula(claim["formula"], path).bind(m)
     if f.form in ("always", "state"):
         end = views[-1]
         if f.pf(end):
-            return False, f"the final state does not break {f.text!r} on this model"
+            return False, f"the replayed path's final state does not break {f.text!r}"
         return True, f"the final state breaks {f.text!r}: {f.explain(end)}"
     # eventually P, or P leads-to Q: positions are states (0..n) or steps (0..n-1) for events
     goal_f, goal_events = (f.qf, f.q_events) if f.form == "leads-to" else (f.pf, f.p_events)

@@ -667,7 +667,7 @@ def _confirm_run(header: dict, res: ReplayResult, labels: tuple) -> Optional[tup
         return None
     ended = outside_request_state(res.states[-1])
     if ended != recorded:
-        return False, (f"the run's trace records that its request ended {_ending(recorded)}, but on this model it "
+        return False, (f"the run's trace records that its request ended {_ending(recorded)}, but replayed it "
                        f"ends {_ending(ended)}")
     request = header.get("request")
     return True, (f"the request{f' {request}' if isinstance(request, str) else ''} ends {_ending(ended)}, "
@@ -696,16 +696,16 @@ def _confirm(header: dict, res: ReplayResult, compiled: Optional[CompiledModel])
     if prop == "deadlock":
         enabled = res.system.successors(final)
         if enabled:
-            return False, (f"not a deadlock on this model: {len(enabled)} step(s) are enabled at the end "
+            return False, (f"not a deadlock: {len(enabled)} step(s) are enabled where the replayed path ends "
                            f"({', '.join(sorted({s.label for s in enabled})[:5])})")
         if compiled is not None and roar_final(final):
-            return False, "not a deadlock on this model: every request is in a final state at the end"
+            return False, "not a deadlock: every request is in a final state where the replayed path ends"
         return True, "the final state is a deadlock: no step is enabled and requests are left unfinished" \
             if compiled is not None else "the final state is a deadlock: no step is enabled"
     if prop == "sequential-achievement" and compiled is not None:
         why = res.system.sequence_reason(final)
         if why is None:
-            return False, "the final state breaks no sequential-achievement pair on this model"
+            return False, "the replayed path's final state breaks no sequential-achievement pair"
         return True, f"the sequential-achievement pair is still broken: {why}"
     if prop:
         return None, f"replay does not re-decide '{prop}' (its definition is in the job); every step is a step of the model"
