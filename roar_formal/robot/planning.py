@@ -471,7 +471,7 @@ def polyline_length(pts: Sequence[Sequence[float]]) -> float:
 
 def plan_path(grid_or_bool, start_xy: Sequence[float], goal_xy: Sequence[float], robot_radius: float,
               resolution: float | None = None, unknown_is_free: bool = True, *,
-              origin: Sequence[float] = (0.0, 0.0)) -> list[Point] | None:
+              origin: Sequence[float] = (0.0, 0.0), clearance: float = 0.0) -> list[Point] | None:
     """A collision-free polyline for a disc robot from ``start_xy`` to ``goal_xy``, or None.
 
     ``grid_or_bool`` is an :class:`OccupancyGrid` (unknown cells count as free
@@ -482,6 +482,12 @@ def plan_path(grid_or_bool, start_xy: Sequence[float], goal_xy: Sequence[float],
     it starts at ``start_xy`` and ends exactly at ``goal_xy``. A start inside
     the inflation (robot brushing a wall) is moved to the nearest free cell
     within the robot radius; a blocked goal gives None.
+
+    ``clearance`` (m) is room wanted beyond the radius where there is some: the path is planned
+    with obstacles grown by ``robot_radius + clearance`` first, and only where that finds none
+    (a gap narrower than that) with the radius alone. Why: a shortest path brushes every
+    obstacle it passes at exactly the radius, where a follower's safety stop (which keeps a
+    margin) halts the robot.
     """
     if isinstance(grid_or_bool, OccupancyGrid):
         grid = grid_or_bool
@@ -498,6 +504,15 @@ def plan_path(grid_or_bool, start_xy: Sequence[float], goal_xy: Sequence[float],
             raise ValueError("plan_path on a bool array needs a resolution")
         res = float(resolution)
         org = (float(origin[0]), float(origin[1]))
+    if clearance > 0:
+        roomy = _plan_on(occ, res, org, start_xy, goal_xy, robot_radius + clearance)
+        if roomy is not None:
+            return roomy
+    return _plan_on(occ, res, org, start_xy, goal_xy, robot_radius)
+
+
+def _plan_on(occ: np.ndarray, res: float, org: Point, start_xy, goal_xy, robot_radius: float) -> list[Point] | None:
+    """:func:`plan_path` on a bool grid for a disc of ``robot_radius``."""
     blocked = inflate(occ, robot_radius, res)
     ny, nx = blocked.shape
     sx, sy = float(start_xy[0]), float(start_xy[1])

@@ -29,6 +29,8 @@ BLOCKED_PROGRESS = 0.05
 BLOCKED_WINDOW = 3.0
 #: an obstacle seen closer than this on the path ahead stops the base (it waits, it does not push)
 SAFETY_DISTANCE = 0.7
+#: the safety stop halts for a scan point closer than the robot's radius and this to the path ahead
+SAFETY_MARGIN = 0.05
 #: a base waiting this long for an obstacle on its path to go away gives up (blocked)
 WAIT_LIMIT = 5.0
 #: the path follower's control loop runs at this period (20 Hz, as on a real base)
@@ -236,7 +238,7 @@ class Robot:
             if d > SAFETY_DISTANCE + radius or (best is not None and d >= best[0]):
                 continue
             for ax, ay in ahead:
-                if math.hypot(px - ax, py - ay) < radius + 0.05:
+                if math.hypot(px - ax, py - ay) < radius + SAFETY_MARGIN:
                     best = (d, px, py)
                     break
         return False if best is None else (best[1], best[2])
@@ -311,8 +313,10 @@ class Robot:
 
     def plan_to(self, goal, label: str = "plan") -> Optional[list]:
         x, y, _ = self.world.base.odometry
+        # room beyond the safety stop's margin where there is some (a cell more: the grid's rounding)
         path = plan_path(self.known_grid(), (x, y), tuple(goal), self.scenario.robot.radius,
-                         resolution=self.resolution, origin=self.floor_plan.origin)
+                         resolution=self.resolution, origin=self.floor_plan.origin,
+                         clearance=SAFETY_MARGIN + self.resolution)
         if path is not None:
             self.plans.append((round(self.time, 3), label, path))
         return path

@@ -432,3 +432,48 @@ def test_wheel_speeds():
     left, right = wheel_speeds(1.0, 2.0, 0.3, 0.05, 10.0)   # 14, 26 rad/s unscaled
     assert max(abs(left), abs(right)) == pytest.approx(10.0)
     assert left / right == pytest.approx(14.0 / 26.0)
+
+
+
+@pytest.mark.parametrize("cx, cy, r", [(5.0, 3.0, 0.1), (5.03, 3.07, 0.15), (6.0, 2.95, 0.3)])
+def test_the_base_passes_a_lone_pillar_without_its_safety_stop(tmp_path, cx, cy, r):
+    """A shortest path brushes a pillar at the robot's radius, where the follower's safety stop
+    (radius + 5 cm) halted the base until it gave up (every time, whatever the pillar); the
+    robot plans with room beyond the stop's margin where there is room."""
+    from roar_formal.robot.robot import Robot
+    from roar_formal.robot.scenario import load_scenario
+    from repo import ROOT
+    text = (ROOT / "models/scenarios/clear.toml").read_text()
+    head, robot = text.split("# a table", 1)[0], "[robot]" + text.split("[robot]", 1)[1]
+    scen = tmp_path / "pillar.toml"
+    scen.write_text(f"{head}[[obstacle]]\ncircle = [{cx}, {cy}, {r}]\n\n{robot}")
+    sc = load_scenario(scen)
+
+    def drive(path):
+        rb = Robot(sc)
+        rb.follow(path)
+        waited = 0
+        while rb.follow_state in ("following", "waiting") and rb.time < 60:
+            rb.step()
+            waited += rb.follow_state == "waiting"
+        return rb.follow_state, waited
+
+    rb = Robot(sc)
+    x, y, _ = rb.world.base.odometry
+    tight = plan_path(rb.known_grid(), (x, y), (10.5, 3.0), sc.robot.radius, resolution=rb.resolution,
+                      origin=rb.floor_plan.origin)
+    assert drive(tight)[0] == "blocked"           # the old plan: the stop halts the base for good
+    assert drive(rb.plan_to((10.5, 3.0))) == ("arrived", 0)
+
+
+def test_clearance_gives_way_in_a_gap_too_narrow_for_it():
+    """A gap wide enough for the robot but not for the room wanted is planned as without clearance."""
+    lo, hi = 2.0 - 0.4, 2.0 + 0.4
+    gap = OccupancyGrid.from_geometry(room(walls=[((3.0, 0.0), (3.0, lo), 0.1), ((3.0, hi), (3.0, 4.0), 0.1)]), RES)
+    assert plan_path(gap, (1.0, 2.0), (5.0, 2.0), RADIUS + 0.05 + RES) is None
+    through = plan_path(gap, (1.0, 2.0), (5.0, 2.0), RADIUS, clearance=0.05 + RES)
+    assert through is not None and through == plan_path(gap, (1.0, 2.0), (5.0, 2.0), RADIUS)
+    # in the open, the room is kept: the path is the one planned for the wider disc
+    g = OccupancyGrid.from_geometry(room(circles=[(3.0, 2.0, 0.15)]), RES)
+    assert plan_path(g, (1.0, 2.05), (5.0, 2.05), RADIUS, clearance=0.15) == \
+        plan_path(g, (1.0, 2.05), (5.0, 2.05), RADIUS + 0.15)
