@@ -481,7 +481,8 @@ class Explorer:
         # time so far: earlier runs, plus this one while it runs (a rate over 0 s is no rate)
         running = getattr(self, "_running_since", None)
         el = self.elapsed + (time.perf_counter() - running if running is not None else 0.0) + 1e-9
-        out = {"states": g.n_states, "transitions": g.n_edges, "frontier": len(self.frontier),
+        # (a bitstate search counts the transitions it does not record: progress shows them all)
+        out = {"states": g.n_states, "transitions": g.n_edges + g.n_unrecorded, "frontier": len(self.frontier),
                "seconds": el, "states_per_s": g.n_states / el, "memory_mb": current_rss_mb()}
         if self.reduce:
             out["reduced_expansions"] = self.reduced_expansions

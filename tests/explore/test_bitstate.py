@@ -39,6 +39,7 @@ def test_a_large_array_visits_what_the_exact_search_visits(variant, n):
     ex, gb, db = _explore(variant, n, "bitstate")
     assert (gb.n_states, gb.n_edges + gb.n_unrecorded) == (g.n_states, g.n_edges)
     assert gb.n_edges == gb.n_states - 1          # only the discovery tree is recorded
+    assert ex.stats()["transitions"] == g.n_edges   # progress counts them all (it showed states - 1)
     assert db.status == d.status
     if d.counterexample is not None:
         assert db.counterexample.length() == d.counterexample.length() == n
