@@ -382,7 +382,10 @@ def _summary(console: Console, results) -> None:
                                            (f" ({mode}, {'bit array too small' if small else 'not verified'})",
                                             "yellow") if mode else "", mark))
         unproved = any(v.status == "holds" and v.details.get("visited") for v in r.verdicts.values())
-        t.add_row(r.name, *cells, f"{r.states:,}", f"{r.seconds:.2f} s",
+        # a swarm that found nothing: its statistics are its last search's; the verdicts say the total
+        swarm = max((v.details.get("swarm_states", 0) for v in r.verdicts.values()), default=0)
+        states = f"{swarm:,} (swarm)" if swarm > r.states else f"{r.states:,}"
+        t.add_row(r.name, *cells, states, f"{r.seconds:.2f} s",
                   Text("as expected" + (", not verified" if unproved else ""),
                        style="yellow" if unproved else "green") if r.ok and not r.incomplete else
                   Text("incomplete", style="yellow") if r.ok else Text("unexpected", style="red"))

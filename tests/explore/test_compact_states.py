@@ -278,6 +278,9 @@ def test_the_jobs_state_bound_holds_for_a_swarm_as_a_whole(tmp_path, capsys, mon
     last = out.split("incomplete: ")[-1]
     assert "the job's budget ended the randomized searches early; raise it (--max-states" in last
     assert " states in the last search, " in out   # the header: the verdicts say the total
+    # the summary table counts the swarm's states in all, not its last search's
+    row = next(line for line in out.splitlines() if "conflict" in line and "│" in line)
+    assert f"{v.details['swarm_states']:,} (swarm)" in row or f"{v.details['swarm_states']:,} (swar" in row, row
 
 
 def test_a_swarm_that_covers_everything_is_exhaustive_in_json(tmp_path, roar_cli):
