@@ -136,7 +136,10 @@ def register(app: typer.Typer) -> None:
                 if st["states"] < status["last"]:   # a search started again with a larger budget
                     status["round"] += 1
                 status["last"] = st["states"]
-                rnd = f" (round {status['round']})" if status["round"] > 1 else ""
+                if getattr(job, "search", None) == "swarm" and not phase:   # (a swarm's searches, not budget rounds)
+                    rnd = f" (search {status['round']} of {job.swarm_runs})"
+                else:
+                    rnd = f" (round {status['round']})" if status["round"] > 1 else ""
                 rnd = f" ({phase}){rnd}" if phase else rnd
                 status["text"] = (f"{job.name}{rnd}: {st['states']:,} states, {st['transitions']:,} transitions, "
                                   f"{st['states_per_s']:,.0f} states/s, frontier {st['frontier']:,}, "
