@@ -136,7 +136,15 @@ class _Build(Transformer):
     def paren(self, c):
         # ``(M)`` is M itself, but positioned at the '(' so that the node's
         # position is still the first token of the text it was read from.
-        return dataclasses.replace(c[1], pos=_tpos(c[0]))
+        node = dataclasses.replace(c[1], pos=_tpos(c[0]))
+        # the item being read keeps it: a #query tells `(1 a)` (its type) from `1 a` (a fifth bound)
+        self.__dict__.setdefault("_parened", {})[id(node)] = node
+        return node
+
+    def _item_read(self) -> dict:
+        """The parenthesised nodes of the item just read, forgotten for the next item (kept
+        alive until then, so that no other node takes one's id)."""
+        return self.__dict__.pop("_parened", None) or {}
 
     def annot(self, c):
         return s.Annot(_tpos(c[0]), c[1], c[2])
@@ -236,16 +244,19 @@ class _Build(Transformer):
 
     # -- items ------------------------------------------------------------
     def decl(self, c):
+        self._item_read()
         name = c[0]
         definition = c[2] if len(c) == 3 else None
         return s.Decl(_tpos(name), str(name), c[1], definition)
 
     def query(self, c):
         kw, d, e, l, a, goal = c
-        head = goal
+        parened = self._item_read()
+        head, bare = goal, id(goal) not in parened
         while isinstance(head, s.App):
             head = head.fn
-        if head is not goal and isinstance(head, (s.One, s.Num)):
+            bare = bare and id(head) not in parened
+        if head is not goal and bare and isinstance(head, (s.One, s.Num)):
             # `#query * 1 * 1 1 a.`: a fifth bound read as the type's head (Celf's parser refuses it too)
             raise SyntaxError_("a #query has four bounds (depth, expected solutions, solutions to look "
                                "for, attempts) and then its type; this one has a fifth bound", head.pos)
@@ -254,6 +265,7 @@ class _Build(Transformer):
                        bounds_pos=tuple(_tpos(b) for b in (d, e, l, a)))
 
     def exec(self, c):
+        self._item_read()
         kw, n, start = c
         return s.Exec(_tpos(kw), _bound(n), start, trace=kw.type == "TRACE")
 
@@ -269,9 +281,11 @@ class _Build(Transformer):
         return s.Mode(_tpos(kw), str(name), tuple(str(m) for m in modes), implicit)
 
     def program(self, c):
+        self._item_read()
         return tuple(c)
 
     def lone_expr(self, c):
+        self._item_read()
         return c[0]
 
 

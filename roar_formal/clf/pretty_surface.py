@@ -103,7 +103,13 @@ def format_item(item: s.Item) -> str:
         return text + "."
     if isinstance(item, s.Query):
         bounds = " ".join(_bound(b) for b in (item.depth, item.expected, item.look, item.attempts))
-        return f"#query {bounds} {format_expr(item.goal)}."
+        head = item.goal
+        while isinstance(head, s.App):
+            head = head.fn
+        goal = format_expr(item.goal)
+        if head is not item.goal and isinstance(head, (s.One, s.Num)):
+            goal = f"({goal})"   # bare, `1 a` after the bounds reads as a fifth bound
+        return f"#query {bounds} {goal}."
     if isinstance(item, s.Exec):
         kw = "#trace" if item.trace else "#exec"
         return f"{kw} {_bound(item.steps)} {format_expr(item.start)}."

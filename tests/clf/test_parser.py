@@ -224,6 +224,18 @@ def test_query_goal_may_start_with_one():
     assert parse_program("#query 1 1 1 1 1.").items == (s.Query(P, 1, 1, 1, 1, s.One(P)),)
 
 
+
+@pytest.mark.parametrize("goal", ["(1 type)", "(1) type", "(1 a) b", "(2 a)"])
+def test_a_parenthesised_goal_headed_by_a_number_is_no_fifth_bound(goal):
+    # bare, `#query * * * 0 1 type.` is refused as a fifth bound; in parentheses it is the goal,
+    # and the printer writes such a goal in parentheses (found by the round-trip property)
+    q = parse_program(f"#query * * * 0 {goal}.").items[0]
+    assert q.attempts == 0 and isinstance(q.goal, s.App)
+    assert parse_program(format_program(s.Program("<input>", (q,)))).items == (q,)
+    with pytest.raises(SyntaxError_, match="fifth bound"):
+        parse_program(f"#query * * * 0 {goal.replace('(', '').replace(')', '')}.")
+
+
 def test_comments_and_whitespace():
     text = ("% a line comment\n"
             "%{ a block\n comment with % and . inside }%\n"
