@@ -52,8 +52,11 @@ class Verdict:
         return self.status == "violated"
 
 
-def incomplete_note(prop: str, g: StateGraph) -> Verdict:
-    what = prop if prop in ("deadlock", "livelock") else f"violation of {prop}"   # not "no invariant"
+def incomplete_note(prop: str, g: StateGraph, what: Optional[str] = None) -> Verdict:
+    """No violation in a partial graph: what was looked for (``what``, default the property's
+    name) said as the complete verdict would say it, with why the search stopped."""
+    if what is None:
+        what = prop if prop in ("deadlock", "livelock") else f"violation of {prop}"   # not "no invariant"
     return Verdict(prop, "incomplete",
                    f"no {what} in {g.n_states:,} states; search incomplete ({g.stop_reason})")
 
@@ -227,9 +230,9 @@ def check_livelock(g: StateGraph, strong: bool = False) -> Verdict:
 
 
 def _no_livelock(g: StateGraph, unfair: bool = False, strong: bool = False) -> Verdict:
-    if not g.complete:
-        return incomplete_note("livelock", g)
     kind = "strongly fair" if strong else "fair"
+    if not g.complete:   # worded as the complete verdict is: a partial graph's unfair cycles are no livelock either
+        return incomplete_note("livelock", g, f"{kind} livelock")
     extra = f" (cycles without progress exist but are all {'strongly ' if strong else ''}unfair)" if unfair else ""
     return Verdict("livelock", "holds", f"no {kind} livelock in {g.n_states:,} states{extra}",
                    details={"unfair_cycles": unfair, "fairness": "strong" if strong else "weak"})

@@ -72,6 +72,9 @@ def test_an_exhausted_budget_is_an_incomplete_verdict_never_holds():
     for v in (check_deadlock(g), check_livelock(g)):
         assert v.status == "incomplete"
         assert "incomplete" in v.message and "50" in v.message
+    # worded as the complete verdict is: no *fair* livelock (an unfair cycle is none either)
+    assert check_livelock(g).message.startswith("no fair livelock in")
+    assert check_livelock(g, strong=True).message.startswith("no strongly fair livelock in")
 
 
 def test_a_violation_in_a_partial_graph_is_reported():
