@@ -313,6 +313,7 @@ class Explorer:
         self.reduce = bool(getattr(getattr(system, "options", None), "reduction", False)) and hasattr(
             system, "reduced_successors")
         self.reduced_expansions = 0
+        self.steps_left_out = 0
         self.proviso_expansions = 0
         self._rng = None   # shuffle(seed): successors taken in a random order (swarm searches)
 
@@ -472,6 +473,7 @@ class Explorer:
             more = rest()
             return succs + more, keys + [self._key(x.state) for x in more]
         self.reduced_expansions += 1
+        self.steps_left_out += len(rest_groups)   # (one group per step left out)
         # the groups the skipped steps belong to are still enabled here (weak fairness)
         self.graph.add_enabled(sid, rest_groups)
         return succs, keys
@@ -487,4 +489,5 @@ class Explorer:
         if self.reduce:
             out["reduced_expansions"] = self.reduced_expansions
             out["proviso_expansions"] = self.proviso_expansions
+            out["steps_left_out"] = self.steps_left_out
         return out

@@ -1262,6 +1262,9 @@ class Exploration:
                 for k in ("visited", "omission_probability", "expected_omissions", "bits", "unrecorded_transitions"):
                     if k in v.details:
                         d[k] = v.details[k]
+            for k in ("reduced_expansions", "steps_left_out"):   # what a partial-order reduction left out
+                if k in v.details:
+                    d[k] = v.details[k]
             if v.counterexample is not None:
                 d["counterexample"] = {"shape": v.counterexample.kind, "steps": counterexample_steps(r.graph, v, r),
                                        "report": counterexample_report(r, p)}

@@ -102,6 +102,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
                            "the states where every request is final, or give [deadlock] accept")
         return verdicts
 
+    _explorer = None   # (the general backend's, for what its reduction left out)
     if grounding_stopped is not None:
         # the budget ran out before the search could start: the start state, unexpanded
         ex = Explorer(ClfSystem(program, start, options), explorer_order(job), on_progress, job.visited)
@@ -120,7 +121,7 @@ def _run_job(job: Job, on_progress) -> JobResult:
         backend += VISITED_NOTE[job.visited]
         if getattr(job, "cluster", None) is not None:
             backend += cluster_note(_explorer)
-    mark_reduction(job, verdicts, reduction)
+    mark_reduction(job, verdicts, reduction, _explorer)
     mark_symmetry(sym, verdicts, graph)
     mark_defaults(props, verdicts)
     mismatches = []

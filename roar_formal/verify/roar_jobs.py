@@ -94,7 +94,7 @@ def run_roar_job(job: Job, on_progress) -> JobResult:
         return ex, lambda g: decide(g, ex.states, ex.system, ctx_of, ex.steps.__getitem__)
 
     explorer, graph, verdicts = run_search(job, t0, explore, options)
-    mark_reduction(job, verdicts, reduction)
+    mark_reduction(job, verdicts, reduction, explorer)
     mark_symmetry(sym, verdicts, graph)
     open_ = [v for v in verdicts.values() if v.status == "incomplete"]
     if open_ and not graph.complete:

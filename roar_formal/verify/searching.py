@@ -181,8 +181,19 @@ def swarm(job: Job, t0: float, explore, options: Options):
     return explorer, graph, verdicts
 
 
-def mark_reduction(job: Job, verdicts: dict, reduction: str) -> None:
+def mark_reduction(job: Job, verdicts: dict, reduction: str, explorer=None) -> None:
+    """Say on every verdict that the search was reduced, and what the reduction left out (a
+    verdict of a budget-bound reduced search says what the reduction saved, too)."""
     if job.reduction:
+        saved = ""
+        if reduction == "on" and getattr(explorer, "reduce", False):
+            n, left = explorer.reduced_expansions, explorer.steps_left_out
+            saved = (f": {n:,} of {explorer.graph.n_states:,} states expanded by a subset of their steps, "
+                     f"{left:,} step(s) not taken" if n else ": it saved nothing here, no state having a smaller "
+                     "set of steps to take")
         for v in verdicts.values():
-            v.message += " (partial-order reduction)" if reduction == "on" else f" (reduction {reduction})"
+            v.message += f" (partial-order reduction{saved})" if reduction == "on" else f" (reduction {reduction})"
             v.details.setdefault("reduction", reduction)
+            if saved:
+                v.details["reduced_expansions"] = explorer.reduced_expansions
+                v.details["steps_left_out"] = explorer.steps_left_out

@@ -53,6 +53,11 @@ def same_deadlocks(src: str, budget: Budget = Budget()):
     assert a.status == b.status
     for s in range(red.n_states):  # every state of the reduced graph is a state of the full one
         assert red_ex.system.key(red_ex.states[s]) in full_ex.ids
+    # what the reduction says it left out: every step enabled at a reduced graph's state is a
+    # transition of it or a step left out (counted afresh by the engine)
+    enabled = sum(len(red_ex.system.program.steps(red_ex.states[s])) for s in range(red.n_states))
+    assert enabled == red.n_edges + red_ex.steps_left_out
+    assert (red_ex.steps_left_out > 0) == (red_ex.reduced_expansions > 0)
     return full, red, red_ex
 
 
@@ -104,6 +109,8 @@ def test_philosophers_job_verdicts_with_and_without_reduction(tmp_path, variant,
     sub.mkdir()
     on_dl = run_job(load_job(_job(sub, model, True, '["deadlock"]')))
     assert on_dl.reduction == "on" and on_dl.verdicts["deadlock"].details["reduction"] == "on"
+    left = on_dl.verdicts["deadlock"].details["steps_left_out"]
+    assert left > 0 and f"{left:,} step(s) not taken" in on_dl.verdicts["deadlock"].message
     assert on_dl.verdicts["deadlock"].status == off.verdicts["deadlock"].status
     assert on_dl.graph.n_states <= off.graph.n_states
 
@@ -445,3 +452,18 @@ def test_weak_fairness_livelock_missed_by_reduction_is_confirmed(tmp_path):
     v = res.verdicts["livelock"]
     assert v.violated and "missed" in v.details["reduction"]
     assert res.graph.n_states == full.n_states  # the verdict and its lasso come from the full graph
+
+
+def test_the_json_report_says_what_the_reduction_left_out(tmp_path, capsys):
+    import json
+    from roar_formal.cli import main
+    model = tmp_path / "dl4.clf"
+    model.write_text(gen.program("dl", 4), encoding="utf-8")
+    job = _job(tmp_path, model, True, '["deadlock"]')
+    with pytest.raises(SystemExit):
+        main(["check", str(job), "--json", "--no-traces"])
+    d = json.loads(capsys.readouterr().out)[0]["verdicts"]["deadlock"]
+    direct = run_job(load_job(job)).verdicts["deadlock"]
+    assert d["steps_left_out"] == direct.details["steps_left_out"] > 0
+    assert d["reduced_expansions"] == direct.details["reduced_expansions"] > 0
+    assert f"{d['steps_left_out']:,} step(s) not taken" in d["message"]
