@@ -124,6 +124,7 @@ def register(app: typer.Typer) -> None:
             if max_memory is not None:
                 job.budget.max_memory_mb = max_memory
         results = []
+        stems: set = set()   # the file stems of the jobs checked so far (traces, pictures)
         import time as _time
         for job in jobs:
             status = {"text": f"{job.name}: loading", "round": 1, "last": 0, "plain_at": _time.monotonic(),
@@ -160,6 +161,15 @@ def register(app: typer.Typer) -> None:
                 console.print(styled(("interrupted: ", "yellow"), f"{status['text']}; no verdict"), soft_wrap=True)
                 raise typer.Exit(130)
             results.append(res)
+            # two jobs of one name (files in different folders) write their traces and pictures
+            # side by side, not one over the other: the later one's files are <name>-2, -3, ...
+            stem, n = res.result.job.name, 1
+            while stem in stems:
+                n += 1
+                stem = f"{res.result.job.name}-{n}"
+            stems.add(stem)
+            if n > 1:
+                res.result.file_stem = stem
             if no_traces:
                 res.result.saved = {}
             else:

@@ -19,7 +19,8 @@ from pathlib import Path
 
 from ..errors import RoarError
 from ..trace.format import write_atomic_bytes
-from .report import counterexample_report, replay_command, safe_name
+from .report import counterexample_report, replay_command
+from .results import safe_name
 
 __all__ = ["write_html_report", "render_index"]
 

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from ..errors import RoarError
 from ..trace.format import write_atomic_bytes
-from .report import counterexample_report, safe_name
+from .report import counterexample_report
+from .results import safe_name
 
 #: the largest graph written as DOT: beyond it a drawing is unreadable and slow to lay out
 DOT_MAX_STATES = 3000

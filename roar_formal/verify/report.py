@@ -201,12 +201,6 @@ def chart_title(res, prop: str) -> str:
     return f"{res.job.name}: {prop} {v.status}"
 
 
-def safe_name(res, prop: str) -> str:
-    """The file stem of a job's picture or trace: the job name with unsafe characters replaced."""
-    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in res.job.name) + f".{prop}"
-
-
-
 def replay_step_lines(rep, i: int, verbose: bool = False, always: bool = False) -> Lines:
     """Step ``i`` (from 1) of a replayed trace (:class:`~roar_formal.verify.replay.TraceReplay`):
     for a spec, the agent, its ROAR events and the variables it changed (the CLF step with

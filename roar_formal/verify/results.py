@@ -97,11 +97,17 @@ def counterexample_steps(graph: StateGraph, verdict: Verdict, result: Optional[J
     return out
 
 
+def safe_name(res, prop: str) -> str:
+    """The file stem of a job's picture or trace: the job name (or the stem a check run gave it,
+    ``res.file_stem``: two jobs of one name) with unsafe characters replaced."""
+    name = getattr(res, "file_stem", None) or res.job.name
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name) + f".{prop}"
+
+
 def save_counterexample(result: JobResult, prop: str, folder: Path) -> Path:
     v = result.verdicts[prop]
     steps = counterexample_steps(result.graph, v, result)
-    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in result.job.name)
-    path = folder / f"{safe}.{prop}.jsonl"
+    path = folder / f"{safe_name(result, prop)}.jsonl"
     job = result.job
     # paths are recorded for people to read; replay never opens them (docs/trust.md): it takes
     # the model from its command line and compares the fingerprint of its sources

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -279,3 +280,30 @@ def test_an_unknown_property_is_located_at_its_name(tmp_path, capsys):
     assert e.value.code == 2
     err = capsys.readouterr().err.replace("\n", "")
     assert f"{props}:2:11: unknown property 'livelok' (did you mean 'livelock'?)" in err
+
+
+def test_two_jobs_of_one_name_keep_both_traces(tmp_path, capsys):
+    # jobs in two folders, one name (the dl and ll philosophers): the later one's trace is
+    # <name>-2, not written over the first; each replays on its own model
+    jobs = []
+    for variant in ("dl5", "ll5"):
+        folder = tmp_path / variant
+        folder.mkdir()
+        text = (ROOT / "checker" / f"philosophers_{variant}.toml").read_text(encoding="utf-8")
+        text = re.sub(r'^name = ".*"$', 'name = "phil"', text, flags=re.M)
+        text = text.replace('"../', f'"{ROOT.as_posix()}/')
+        assert 'name = "phil"' in text
+        (folder / "job.toml").write_text(text, encoding="utf-8")
+        jobs.append(str(folder / "job.toml"))
+    traces = tmp_path / "traces"
+    with pytest.raises(SystemExit):
+        main(["check", *jobs, "--traces", str(traces)])
+    out = capsys.readouterr().out
+    first, second = sorted(traces.glob("phil.*.jsonl")), sorted(traces.glob("phil-2.*.jsonl"))
+    assert first and second, sorted(traces.iterdir())
+    assert f"phil-2.{second[0].name.split('.')[1]}.jsonl" in re.sub(r"\s+", "", out)   # (wrapped or not)
+    for trace, model in [(first[0], "dl.clf"), (second[-1], "ll.clf")]:
+        with pytest.raises(SystemExit) as e:
+            main(["replay", str(trace), "--model", str(ROOT / "models" / "philosophers" / model)])
+        assert e.value.code == 0, capsys.readouterr().out
+        capsys.readouterr()
