@@ -15,6 +15,7 @@ import contextvars
 import hashlib
 import json
 import logging
+import os
 import pickle
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -196,6 +197,7 @@ def make_explorer(job, system, on_progress, order: str):
                                      batch=session.setup.batch, on_progress=on_progress, visited=job.visited)
         except DistributedError as exc:
             raise RoarError(f"distributed search: {exc}", session.setup.pos) from None
+    ex.local = not session.setup.address   # (a local cluster: cluster_note weighs its workers against the cores)
     session.explorers.append(ex)
     return ex
 
@@ -206,7 +208,21 @@ def cluster_note(explorer) -> str:
     if n is None or not hasattr(explorer, "run_id"):
         return ""
     kind = "swarm on a cluster" if getattr(explorer, "swarm", False) else "distributed"
-    return f", {kind} ({n} worker{'s' if n != 1 else ''})"
+    note = f", {kind} ({n} worker{'s' if n != 1 else ''}"
+    cores = _cores()
+    if getattr(explorer, "local", False) and n >= cores and kind == "distributed":
+        # the workers, the scheduler and this process share the cores: no speed-up to expect
+        note += (f" on {cores} core{'s' if cores != 1 else ''}, shared with the scheduler and this process: "
+                 "expect no speed-up")
+    return note + ")"
+
+
+def _cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):   # (not on every platform)
+        return os.cpu_count() or 1
 
 
 
