@@ -132,3 +132,101 @@ def test_every_reached_state_and_its_scrambled_copies_have_one_key(rnd):
 
     for s in _reached(leveled_program(rnd), 150):
         assert canonical_key(_scrambled(s, rnd)) == canonical_key(s)
+
+
+def _names(ctx) -> list:
+    from roar_formal.clf.terms import Node, params_of
+    names: dict = {}
+    for _m, t, _n in ctx.facts():
+        params_of(t, names)
+    for r in ctx.rules.values():
+        for v in r.env:
+            if isinstance(v, Node):
+                params_of(v, names)
+    return list(names)
+
+
+def _plain(ctx, ren: dict):
+    """The state's hypotheses with its names renamed by ``ren``, as a multiset (no canonical form)."""
+    from collections import Counter
+    from roar_formal.clf.state import _rename
+    from roar_formal.clf.terms import Node
+    new = (lambda t: _rename(t, ren, {}) if isinstance(t, Node) else t)
+    c: Counter = Counter()
+    for m, t, n in ctx.facts():
+        c[(m, new(t))] += n
+    for r in ctx.rules.values():
+        c[("rule", id(r.alts[0]) if r.alts else 0, tuple(new(v) for v in r.env), r.mode)] += 1
+    return c
+
+
+def _isomorphic(a, b) -> bool:
+    """By brute force: some bijection between the two states' fresh names maps one onto the other."""
+    import itertools
+    na, nb = _names(a), _names(b)
+    if len(na) != len(nb):
+        return False
+    target = _plain(b, {})
+    return any(_plain(a, dict(zip(na, perm))) == target for perm in itertools.permutations(nb))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.randoms(use_true_random=False))
+def test_keys_are_equal_exactly_for_isomorphic_states(rnd):
+    """Soundness and completeness against brute force: the exact states a search reaches (compared
+    without renaming) grouped by canonical key; within a group every state is an isomorphic copy
+    of the first, and no two groups' first states are isomorphic (states with at most 5 names)."""
+    from leveled import leveled_program
+    from roar_formal.explore.search import Budget, Explorer
+    from roar_formal.explore.system import ClfSystem, Options
+
+    prog = Program.from_text(leveled_program(rnd))
+    ex = Explorer(ClfSystem(prog, prog.start_context(prog.sig.directives[-1].start), Options(canonical=False)))
+    g = ex.run(Budget(max_states=120, max_seconds=20))
+    groups: dict = {}
+    for s in range(g.n_states):
+        st_ = ex.states[s]
+        if len(_names(st_)) <= 5:
+            groups.setdefault(canonical_key(st_), []).append(st_)
+    firsts = [v[0] for v in groups.values()]
+    for members in groups.values():
+        for other in members[1:]:
+            assert _isomorphic(members[0], other)
+    for i, a in enumerate(firsts):
+        for b in firsts[i + 1:]:
+            assert not _isomorphic(a, b)
+
+
+_FACTS = st.lists(st.tuples(st.sampled_from(["t", "l", "m"]), st.lists(st.integers(0, 3), min_size=3, max_size=3)),
+                  min_size=1, max_size=6)
+
+
+def _context(facts, names):
+    """A context of linear facts ``t A``, ``l A B``, ``m A B C`` over the fresh names ``names``."""
+    from roar_formal.clf.context import Context
+    from roar_formal.clf.terms import Const, Root
+    arity = {"t": 1, "l": 2, "m": 3}
+    ctx = Context()
+    for head, args in facts:
+        ctx.add_fact(Root(Const(head), tuple(names[i] for i in args[:arity[head]])), "1")
+    return ctx
+
+
+@settings(max_examples=300, deadline=None)
+@given(_FACTS, st.permutations(range(4)), st.integers(0, 5), st.randoms(use_true_random=False))
+def test_keys_of_small_states_agree_with_brute_force(facts, perm, which, rnd):
+    """A state of facts over four fresh names, and a renamed copy with one fact's arguments
+    permuted (often not isomorphic: `l a b` against `l b a` where a and b differ otherwise):
+    equal keys exactly when brute force finds an isomorphism."""
+    from roar_formal.clf.terms import Param, Root
+    names = [Root(Param("x"), ()) for _ in range(4)]
+    other = [Root(Param("y"), ()) for _ in range(4)]
+    a = _context(facts, names)
+    changed = [list(f) for f in facts]
+    i = which % len(changed)
+    args = list(changed[i][1])
+    rnd.shuffle(args)
+    changed[i][1] = args
+    rnd.shuffle(changed)
+    b = _context(changed, [other[perm[j]] for j in range(4)])
+    assert (canonical_key(a) == canonical_key(b)) == _isomorphic(a, b)
