@@ -820,7 +820,10 @@ def run_model(model: CompiledModel, seed: int = 0, max_steps: int = 100_000, reg
             if schedule is not None and schedule.at_rest(ctx) and fire_due():
                 continue   # a comeback due later: nothing else can happen before it
             tick = next(iter(enabled_steps(tick_tpl, ctx, prog.prover())), None) if tick_tpl else None
-            if tick is not None and not (max_steps and len(steps) >= max_steps):
+            if tick is not None:
+                if max_steps and len(steps) >= max_steps:
+                    quiescent = False   # the clock could still advance: the step bound stopped the run
+                    break
                 _nxt, st = prog.successor(ctx, tick)   # the tick's instance, applied to the run's context
                 on_step(runner.external([f for _m, f in st.consumed], [f for _m, f in st.produced],
                                         rule=TICK_RULE), ctx)

@@ -311,3 +311,22 @@ def test_a_step_missing_from_a_trace_is_named_where_the_replay_stops(roar_cli, t
             assert f"the trace has no step {records[k]['step']}: a step missing" in e.format()
             return
     raise AssertionError("no dropped step was noticed")
+
+
+def test_a_timed_run_the_step_bound_stops_before_a_tick_is_not_quiescent():
+    # the run to its end takes the clock's ticks when nothing else can happen; bounded to the
+    # step before each tick, the run stopped with the clock still able to advance: not quiescent
+    # (it said quiescent, as a deadlock would, when the bound fell just there)
+    from roar_formal.roar.run import TICK_RULE
+    spec = load_spec(ROOT / "tests" / "roar" / "data" / "wait_timeout.roar")
+    whole = spec.run("door::open == true", time="timed", wait_timeout=100)
+    assert whole.outcome == "failure" and whole.quiescent
+    ticks = [i + 1 for i, s in enumerate(whole.result.steps) if s[0] == TICK_RULE]
+    assert ticks
+    for k in ticks:
+        cut = spec.run("door::open == true", time="timed", wait_timeout=100, max_steps=k - 1)
+        assert cut.clf_steps == k - 1 and cut.outcome == "running"
+        assert not cut.quiescent
+    # and bounded past the end, the run is the whole one
+    assert spec.run("door::open == true", time="timed", wait_timeout=100,
+                    max_steps=whole.clf_steps + 1).quiescent
