@@ -510,6 +510,16 @@ class RoarMachine(RuleBasedStateMachine):
     def _outcomes(self) -> list:
         return [(i, outcome) for i, (_c, _a, outcome) in enumerate(self._choices()) if outcome is not None]
 
+    def _step_label(self, rule: str) -> str:
+        """A step as Hypothesis prints the draw: a statement's rule with the statement and its
+        line (``st1_make: make(gripper::holding == true) (line 17)``), a framework rule by name."""
+        site = self.model.rule_sites.get(rule)
+        if not site:
+            return rule
+        s = self.model.sites[site]
+        text = s.text if len(s.text) <= 60 else s.text[:57] + "..."
+        return f"{rule}: {text} (line {s.pos.line})"
+
     @staticmethod
     def _labels(names: list[str]) -> list[str]:
         seen: dict[str, int] = {}
@@ -524,7 +534,7 @@ class RoarMachine(RuleBasedStateMachine):
     def agent_step(self, data: Any) -> None:
         moves = self._agent_moves()
         agent = data.draw(st.sampled_from(sorted(moves)), label="agent")
-        labels = self._labels([r for _i, r in moves[agent]])
+        labels = self._labels([self._step_label(r) for _i, r in moves[agent]])
         pick = data.draw(st.sampled_from(labels), label="step")
         self._move(moves[agent][labels.index(pick)][0])
 
@@ -544,6 +554,7 @@ class RoarMachine(RuleBasedStateMachine):
     # -------------------------------------------------------------- checks
     def fail(self, what: str) -> None:
         """Fail the run: ``what`` and the ROAR events that led here."""
+        __tracebackhide__ = True   # (pytest: the failure is the test's, not this library's)
         exc = AssertionError(f"{what}\n{self._run_note()}")
         exc._roar_run_shown = True  # type: ignore[attr-defined]
         raise exc
@@ -552,9 +563,13 @@ class RoarMachine(RuleBasedStateMachine):
         return f"  after {len(self.rules)} steps; the run, one ROAR event a line:\n{self.format_run()}"
 
     def check_invariants(self, *args: Any, **kwargs: Any) -> None:
-        """Hypothesis' invariant checks; a failing ``assert`` of a subclass's invariant gets the run
-        so far as a note, so every failure shows the ROAR events that led to it."""
+        """The built-in checks, then Hypothesis' invariant checks (the subclass's, which Hypothesis
+        runs in the order of their names: the built-in ones first whatever the names); a failing
+        ``assert`` of a subclass's invariant gets the run so far as a note, so every failure shows
+        the ROAR events that led to it."""
+        __tracebackhide__ = True
         try:
+            self._builtin_checks()
             super().check_invariants(*args, **kwargs)
         except AssertionError as exc:
             if not getattr(exc, "_roar_run_shown", False):
@@ -564,6 +579,12 @@ class RoarMachine(RuleBasedStateMachine):
 
     @invariant()
     def roar_model_checks(self) -> None:
+        """The built-in checks, as an invariant Hypothesis lists (check_invariants runs them first)."""
+        __tracebackhide__ = True
+        self._builtin_checks()
+
+    def _builtin_checks(self) -> None:
+        __tracebackhide__ = True
         if self._checked is self.state:
             return
         self._checked = self.state
@@ -588,4 +609,17 @@ class RoarMachine(RuleBasedStateMachine):
             if why:
                 self.fail(f"sequential-achievement violated: {why}")
         if self.check_deadlock and self.quiescent and not self.final:
-            self.fail("deadlock: nothing can move, but a request is not final or a recipe is still live")
+            self.fail("deadlock: nothing can move, but a request is not final or a recipe is still live\n"
+                      + self._deadlock_note())
+
+    def _deadlock_note(self) -> str:
+        """The quiescent state per agent and who waits for whom, as ``roar-verify check`` prints a
+        deadlock's final state."""
+        from ..roar.report import decode_state
+        from ..verify.report import roar_final_lines
+        nar = self._narrator
+        final = decode_state(self.model, self.state, nar.labels, nar.req_info)
+        blocked = [{"agent": a, **act} for a, row in final["agents"].items() for act in row["activities"]]
+        rep = {"final": final["agents"],
+               "deadlock": {"blocked": blocked, "wait_for": final["wait_for"], "cycle": final["cycle"]}}
+        return roar_final_lines(rep, "path").text()

@@ -98,7 +98,7 @@ def counterexample_lines(res, prop: str, verbose: bool = False) -> Lines:
         if verbose and not shown and not s["changes"]:
             out.add(f"    {i:>3}. ", (f"[{s['group']}] {s['rule']}", "dim"), wrap=True)
     if is_roar:
-        out.extend(_roar_final_lines(rep, v.counterexample.kind))
+        out.extend(roar_final_lines(rep, v.counterexample.kind))
         robot = getattr(res, "robot", None)
         if robot is not None:   # where the robot is, and when
             node = robot.explorer.states[v.counterexample.final_state].node
@@ -136,7 +136,7 @@ def replay_command(job, trace) -> str:
     return f"roar-verify replay {trace} --model {job.spec if job.is_roar else job.model}{functional}{on_robot}"
 
 
-def _roar_final_lines(rep: dict, shape: str, head: Optional[str] = None) -> Lines:
+def roar_final_lines(rep: dict, shape: str, head: Optional[str] = None) -> Lines:
     """The final state as a per-agent table, then the deadlock's wait-for cycle."""
     out = Lines()
     head = head or ("final state" if shape == "path" else "state where the cycle starts")
@@ -246,7 +246,7 @@ def replay_state_lines(rep, i: int, agent: Optional[str] = None) -> Lines:
         final = decode_state(rep.compiled, rep.result.states[i], *rep._labels)
         blocked = [{"agent": a, **act} for a, row in final["agents"].items() for act in row["activities"]]
         doc["deadlock"] = {"blocked": blocked, "wait_for": final["wait_for"], "cycle": final["cycle"]}
-    return _roar_final_lines(doc, "path" if last else "step", head=None if last else f"state after step {i}")
+    return roar_final_lines(doc, "path" if last else "step", head=None if last else f"state after step {i}")
 
 
 def replay_report(rep) -> dict:

@@ -61,6 +61,29 @@ def test_a_deadlock_is_found_by_the_built_in_check(models):
     out = failure(Mutual)
     assert out.startswith("deadlock: nothing can move, but a request is not final or a recipe is still live")
     assert "make R2 to arm: arm::parked == true" in out
+    # who waits for whom, as `roar-verify check` explains a deadlock's final state
+    assert "wait-for cycle: arm -> door -> arm" in out
+    assert "door waits for arm: open_door.swing waits for R2 (arm::parked == true)" in out
+    # a statement's step is drawn with the statement and its line (read off the spec's text here)
+    lines = (models / "faulty" / "mutual_make.roar").read_text(encoding="utf-8").splitlines()
+    for text in ("make(door::open == true)", "make(arm::parked == true)"):
+        line = next(i for i, x in enumerate(lines, 1) if text in x)
+        assert re.search(rf"\(step\): 'st\d+_make: {re.escape(text)} \(line {line}\)'", out), text
+
+
+def test_the_built_in_checks_run_before_the_subclass_invariants(models):
+    # Hypothesis runs invariants in the order of their names: one named to come first still
+    # sees the built-in deadlock check fail before it
+    class Mutual(RoarMachine):
+        spec = models / "faulty" / "mutual_make.roar"
+        request = "arm::started == true"
+
+        @invariant()
+        def a_user_check_failing_at_the_end(self):
+            assert not self.quiescent, "the user's check"
+
+    out = failure(Mutual)
+    assert out.startswith("deadlock: nothing can move"), out[:200]
 
 
 def test_never_patterns_and_one_engine_step_a_rule(examples):
