@@ -437,7 +437,20 @@ class ModelPath:
         return f"<path of {len(self.rules)} steps: {' '.join(self.rules) or '(none)'}{end}>"
 
     def _repr_pretty_(self, p: Any, cycle: bool) -> None:
-        p.text(repr(self))
+        """As Hypothesis prints a falsifying path: a spec's ROAR events one a line (on one line, a
+        path of a few dozen events ran to a thousand characters)."""
+        if not self.events:
+            p.text(repr(self))
+            return
+        p.text(f"<path of {len(self.rules)} steps, its ROAR events:")
+        with p.indent(4):
+            for e in self.events:
+                p.break_()
+                p.text(f"{e.step}. {e.agent}: {e.text}")
+            if self.quiescent:
+                p.break_()
+                p.text("then quiescent")
+        p.text(">")
 
 
 def _start_of(target: Union[AgentSpec, ClfModel], request: Optional[str]):

@@ -179,6 +179,12 @@ def test_paths_of_a_spec_carry_its_roar_events_and_reach_its_deadlock(models):
     shown = repr(path)
     assert shown.startswith("<path of 27 steps, its ROAR events: 1. arm: R0 sent -> pending  (arm::started == true);")
     assert shown.endswith(", then quiescent>") and "select_" not in shown
+    # hypothesis' pretty printer (a falsifying example): one event a line, as many as the events
+    from hypothesis.vendor.pretty import pretty
+    pretty_lines = pretty(path).splitlines()
+    assert pretty_lines[0] == "<path of 27 steps, its ROAR events:"
+    assert pretty_lines[1:-1] == [f"    {e.step}. {e.agent}: {e.text}" for e in path.events]
+    assert pretty_lines[-1] == "    then quiescent>"
     with pytest.raises(InvalidArgument, match="need a request"):
         find(paths(spec), lambda p: True, settings=FIND)
     # a path's states read in the spec's terms: each variable's value as the events wrote it
