@@ -666,7 +666,7 @@ def split_never(never: Sequence[str], pos: Pos) -> tuple[list, list]:
     """``never`` of an exploration of a spec (or of a stateful machine), read as a job file reads
     ``[invariant] never``: CLF patterns (``(text, pos)``) and predicates in the spec's terms."""
     clf, spec = _split_terms(never, pos, "never", 'CLF patterns such as "busy P * busy P"')
-    return [(p, pos) for p in clf], spec
+    return [(p, _string_pos(pos, p)) for p in clf], spec
 
 
 def split_progress(progress: Sequence[str], pos: Pos) -> tuple[list, list]:
@@ -1618,7 +1618,7 @@ class ClfModel:
             raise RoarError(f"backend must be 'auto', 'ground' or 'general', not {backend!r}", _caller_pos())
         pos = _caller_pos()
         ps = PropertySpec(check=props, progress=list(progress), fairness=fairness, accept=accept,
-                          never=[(p, pos) for p in never], sources=[str(pos.file)] if accept else [])
+                          never=[(p, _string_pos(pos, p)) for p in never], sources=[str(pos.file)] if accept else [])
         path = _written(self.path, self.text) if self.text is not None else self.path
         job = Job(path=path, name=name or Path(self.name.strip("<>")).stem, model=path,
                   start=start if start is not None else self.start, props=ps, budget=as_budget(budget),

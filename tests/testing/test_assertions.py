@@ -177,3 +177,15 @@ def test_conformance_with_the_robot(models, tmp_path):
                                           encoding="utf-8")
     with pytest.raises(RoarAssertionError, match=r"(?s)does not conform to the robot of .*door.toml.*NOT sound"):
         assert_conforms(tmp_path / "door_nav.roar", req, door, runs=1, random_faults=False)
+
+
+def test_a_bad_clf_pattern_is_located_inside_its_quotes(models):
+    # as a predicate in the spec's terms is: the column where the pattern starts on this line
+    import inspect
+    model = load(models / "philosophers" / "dl.clf")
+    with pytest.raises(RoarError) as e:
+        assert_invariant(model, never=["nosuchfamily P"])
+    line = inspect.currentframe().f_lineno - 1
+    text = open(__file__, encoding="utf-8").read().splitlines()[line - 1]
+    assert e.value.pos.line == line and e.value.pos.col == text.index('"nosuchfamily P"') + 2
+    assert "nosuchfamily" in e.value.message
