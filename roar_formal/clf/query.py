@@ -202,11 +202,13 @@ _MODE_WORD = {LIN: "lin", AFF: "aff", PERS: "pers"}
 
 
 def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[str], None] = print,
-             trace: bool = False, fair: bool = False) -> DirectiveResult:
+             trace: bool = False, fair: bool = False, max_steps: Optional[int] = None) -> DirectiveResult:
     """Run ``#exec n S`` or ``#trace n S`` with Celf's output: ``Exec n S`` (``Trace n S``), the
     context (:func:`context_layout`; with ``#trace``, or ``trace``, also before the first step
     and after each one), then ``Success: k steps``, or ``Exec failed, expected n steps but only
-    k taken`` (raising :class:`QueryError`, Celf's "query failed") when it quiesced early."""
+    k taken`` (raising :class:`QueryError`, Celf's "query failed") when it quiesced early.
+    ``max_steps`` bounds ``#exec *`` (which Celf runs until the program quiesces, for ever if it
+    never does): past it the directive fails, saying the program had not quiesced."""
     kw = "Trace" if d.trace else "Exec"
     program = program.at(d.prefix)
     emit(f"{kw} {_b(d.steps)} {program.show(d.start)}")
@@ -225,7 +227,8 @@ def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[
 
     bound = None if d.steps == "*" else d.steps
     try:
-        steps, _quiescent = program.run(ctx, bound, seed=seed, fair=fair, on_step=on_step)
+        steps, quiescent = program.run(ctx, max_steps if bound is None else bound, seed=seed, fair=fair,
+                                       on_step=on_step)
     except BuiltinError as exc:
         raise BuiltinError(exc.message, exc.pos or d.pos, exc.notes) from None
     except (SearchLimit, RecursionError) as exc:
@@ -239,6 +242,11 @@ def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[
     if not show_each:
         for line in context_layout(ctx):  # Celf prints it on success; here also on failure
             emit(line)
+    if bound is None and not quiescent:   # (only with max_steps: '*' runs to quiescence otherwise)
+        res.ok = False
+        emit(f"{kw} stopped after {steps} steps (--max-steps {max_steps}): the program had not quiesced")
+        raise QueryError(f"#{kw.lower()} * did not quiesce within {max_steps} steps (--max-steps); Celf would "
+                         "run it on, for ever if nothing ends it", d.pos)
     if bound is not None and steps < bound:
         res.ok = False
         emit(f"{kw} failed, expected {bound} steps but only {steps} taken")  # Celf's words
@@ -249,19 +257,21 @@ def run_exec(program: Program, d: ExecDirective, seed: int = 0, emit: Callable[[
 
 
 def run_directives(program: Program, seed: int = 0, emit: Callable[[str], None] = print,
-                   trace: bool = False, fair: bool = False, proofs: bool = False) -> list[DirectiveResult]:
+                   trace: bool = False, fair: bool = False, proofs: bool = False,
+                   max_steps: Optional[int] = None) -> list[DirectiveResult]:
     """Run every directive in program order; the first failing one raises."""
     out = []
     for d in program.sig.directives:
         if isinstance(d, QueryDirective):
             out.append(run_query(program, d, seed, emit, fair, proofs))
         else:
-            out.append(run_exec(program, d, seed, emit, trace, fair))
+            out.append(run_exec(program, d, seed, emit, trace, fair, max_steps))
     return out
 
 
 def run_file(path, seed: int = 0, emit: Callable[[str], None] = print, trace: bool = False,
-             fair: bool = False, proofs: bool = False, strict: bool = True) -> list[DirectiveResult]:
+             fair: bool = False, proofs: bool = False, strict: bool = True,
+             max_steps: Optional[int] = None) -> list[DirectiveResult]:
     """Check and run a Celf file the way Celf does: one item at a time, so each directive
     runs (and prints) before the declarations after it are checked, and sees only the
     declarations before it; the first error (parse, type, mode, or a failed directive) stops."""
@@ -280,7 +290,7 @@ def run_file(path, seed: int = 0, emit: Callable[[str], None] = print, trace: bo
         if isinstance(d, QueryDirective):
             out.append(run_query(program, d, seed, emit, fair, proofs))
         else:
-            out.append(run_exec(program, d, seed, emit, trace, fair))
+            out.append(run_exec(program, d, seed, emit, trace, fair, max_steps))
     if sig is not None and (program is None or program._size != len(sig.consts)):
         Program(sig)  # the rules after the last directive are compiled too (and refused if they must be)
     return out

@@ -74,14 +74,17 @@ def line_printer(stream=None) -> Callable[[str], None]:
     return emit
 
 
-def run_clf(file: Path, seed: int = 0, trace: bool = False, fair: bool = False, proof: bool = True) -> None:
+def run_clf(file: Path, seed: int = 0, trace: bool = False, fair: bool = False, proof: bool = True,
+            max_steps: Optional[int] = None) -> None:
     """The ``roar-verify clf`` command: check and run FILE as Celf does (see docs/clf.md)."""
     from ..clf.query import run_file, with_big_stack
 
+    if max_steps is not None and max_steps < 1:
+        raise RoarError(f"--max-steps is a number of steps above 0, not {max_steps}")
     emit = line_printer()
 
     def job():
-        return run_file(file, seed=seed, emit=emit, trace=trace, fair=fair, proofs=proof)
+        return run_file(file, seed=seed, emit=emit, trace=trace, fair=fair, proofs=proof, max_steps=max_steps)
 
     try:
         with_big_stack(job)
@@ -109,7 +112,7 @@ def run_clf(file: Path, seed: int = 0, trace: bool = False, fair: bool = False, 
 def fast_args(args: list[str]) -> Optional[dict]:
     """The options of ``roar-verify clf ARGS`` read without Typer (whose start-up costs more
     than a small Celf program takes to run), or None when they need Typer (help, errors)."""
-    out: dict = {"seed": 0, "trace": False, "fair": False, "proof": True}
+    out: dict = {"seed": 0, "trace": False, "fair": False, "proof": True, "max_steps": None}
     files = []
     i = 0
     while i < len(args):
@@ -127,6 +130,15 @@ def fast_args(args: list[str]) -> Optional[dict]:
             if not re.fullmatch(r"-?[0-9]+", v):
                 return None
             out["seed"] = int(v)
+        elif a == "--max-steps" or a.startswith("--max-steps="):
+            if a == "--max-steps":
+                i += 1
+                v = args[i] if i < len(args) else ""
+            else:
+                v = a[len("--max-steps="):]
+            if not re.fullmatch(r"[0-9]+", v):
+                return None
+            out["max_steps"] = int(v)
         elif a.startswith("-") and a != "-":
             return None
         else:
@@ -151,6 +163,9 @@ def register(app) -> None:
         proof: bool = typer.Option(True, "--proof/--no-proof",
                                    help="Print each #query solution's proof term, as Celf does (the default); "
                                         "--no-proof prints 'Solution: _' and skips building the terms."),
+        max_steps: Optional[int] = typer.Option(None, "--max-steps", help="Stop '#exec *' and '#trace *' "
+                                                "after this many steps, failing, if the program has not quiesced "
+                                                "(Celf runs them on, for ever if nothing ends them)."),
     ) -> None:
         """Type-check FILE and run its #query, #exec and #trace directives, as Celf does."""
-        run_clf(file, seed=seed, trace=trace, fair=fair, proof=proof)
+        run_clf(file, seed=seed, trace=trace, fair=fair, proof=proof, max_steps=max_steps)

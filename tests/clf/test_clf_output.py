@@ -210,3 +210,25 @@ def test_printed_proof_terms_read_back_as_definitions(goal):
     assert sols and len(set(sols)) == len(sols), lines   # distinct proofs print distinctly
     for k, sol in enumerate(sols):
         Program.from_text(ROUND_TRIP + f"pf{k} : {goal} = {sol}.\n", "<t>")   # raises if it does not check
+
+
+@pytest.mark.parametrize("route", [(), ("--",)])   # the fast reader and Typer's
+def test_max_steps_stops_an_exec_that_never_quiesces(tmp_path, capsys, route):
+    loop = tmp_path / "loop.clf"
+    loop.write_text("a : type.\nr : a -o {a}.\n#exec * a.\n")
+    code, out, err = run_cli(capsys, "--max-steps", "50", *route, loop)
+    assert code == 2 and "Exec stopped after 50 steps (--max-steps 50): the program had not quiesced" in out
+    assert "loop.clf:3:1: #exec * did not quiesce within 50 steps" in err
+    # a program that quiesces at the bound, or before it, succeeds as without the option
+    three = tmp_path / "three.clf"
+    three.write_text("a : type. b : type. c : type. d : type.\nr1 : a -o {b}.\nr2 : b -o {c}.\n"
+                     "r3 : c -o {d}.\n#exec * a.\n")
+    for bound, ok in ((2, False), (3, True), (4, True)):
+        code, out, _err = run_cli(capsys, f"--max-steps={bound}", *route, three)
+        assert (code == 0) == ok and (("Success: 3 steps" in out) == ok), (bound, out)
+    # an explicit bound is the program's: the option bounds '*' only
+    three.write_text(three.read_text().replace("#exec *", "#exec 3"))
+    code, out, _err = run_cli(capsys, "--max-steps", "1", *route, three)
+    assert code == 0 and "Success: 3 steps" in out
+    code, _out, err = run_cli(capsys, "--max-steps", "0", *route, three)
+    assert code == 2 and "--max-steps is a number of steps above 0, not 0" in err
