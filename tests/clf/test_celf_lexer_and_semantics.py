@@ -113,10 +113,12 @@ def test_fast_args():
     assert fast_args(["f.clf"])["file"].name == "f.clf"
     assert fast_args(["--seed", "3", "f.clf", "--trace"])["seed"] == 3
     assert fast_args(["--seed=4", "--fair", "--proof", "f.clf"]) == {
-        "seed": 4, "trace": False, "fair": True, "proof": True, "file": fast_args(["f.clf"])["file"]}
+        "seed": 4, "trace": False, "fair": True, "proof": True, "max_steps": None,
+        "file": fast_args(["f.clf"])["file"]}
+    assert fast_args(["--max-steps", "7", "f.clf"])["max_steps"] == fast_args(["--max-steps=7", "f.clf"])["max_steps"] == 7
     assert fast_args(["f.clf"])["proof"] is True  # Celf prints every solution's term
     assert fast_args(["--no-proof", "f.clf"])["proof"] is False
-    for bad in ([], ["a", "b"], ["--help"], ["--seed", "x", "f"], ["--nope", "f"]):
+    for bad in ([], ["a", "b"], ["--help"], ["--seed", "x", "f"], ["--nope", "f"], ["--max-steps", "-1", "f"]):
         assert fast_args(bad) is None
 
 
