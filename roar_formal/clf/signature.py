@@ -202,6 +202,7 @@ class Elaborator:
         self.bound: list[tuple[str, Param]] = []
         self.ptype: dict[Param, Node] = {}
         self.evars: list[EVar] = []  # every logic variable made for this item
+        self.binder_pos: dict = {}    # the type variable of an untyped binder -> where the binder is
 
     def _evar(self, name: str, ty: Optional[Node], scope_of: Optional[EVar] = None) -> EVar:
         x = EVar(name, ty)
@@ -271,7 +272,7 @@ class Elaborator:
             if x in chain:
                 raise TypeError_("circular dependency between implicit arguments", pos)
             if x.ty is None:
-                raise TypeError_(f"cannot infer the type of '{self._name_of(x)}'", pos)
+                raise TypeError_(f"cannot infer the type of '{self._name_of(x)}'", self.binder_pos.get(x, pos))
             ty = zonk(x.ty)
             x.ty = ty
             for y in free_evars(ty):
@@ -283,12 +284,13 @@ class Elaborator:
             visit(x, ())
         for x in order:
             if isinstance(x.ty, Root) and type(x.ty.head) is EVar:
-                raise TypeError_(f"cannot infer the type of '{self._name_of(x)}'", pos)
+                raise TypeError_(f"cannot infer the type of '{self._name_of(x)}'", self.binder_pos.get(x, pos))
             if isinstance(x.ty, TypeNode) and type(x.ty) is Type and x.name.startswith("ty_"):
                 # the unknown type of a binder or variable that nothing in the declaration constrains
                 name = x.name[3:]
                 raise TypeError_(f"cannot infer the type of '{name}': nothing in the declaration tells it; write "
-                                 f"it ('{name}:A', as in 'Exists {name}:A.' or 'Pi {name}:A.')", pos)
+                                 f"it ('{name}:A', as in 'Exists {name}:A.' or 'Pi {name}:A.')",
+                                 self.binder_pos.get(x, pos))
             if isinstance(x.ty, TypeNode) and type(x.ty) is Type:
                 raise TypeError_(f"'{self._name_of(x)}' would have to be a type; CLF has no type variables "
                                  "(declare a type of type codes, e.g. 'tp : type.', and index by it)", pos)
@@ -319,7 +321,7 @@ class Elaborator:
         if isinstance(e, S.TypeKw):
             return Type()
         if isinstance(e, S.Pi):
-            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var, e.pos)
             p = self._open(e.var, dom)
             body = self.kind(e.body)
             return Pi(e.var, dom, self._close_binder(p, body))
@@ -328,14 +330,18 @@ class Elaborator:
             return Imp("!", dom, self.kind(e.right))
         raise TypeError_("expected a kind (ending in 'type')", e.pos)
 
-    def _type_evar(self, name: str) -> Root:
-        return Root(self._evar(f"ty_{name}", Type()), ())
+    def _type_evar(self, name: str, pos: Optional[Pos] = None) -> Root:
+        """The unknown type of an untyped binder (``Exists x.``, ``Pi x.``) written at ``pos``."""
+        x = self._evar(f"ty_{name}", Type())
+        if pos is not None:
+            self.binder_pos[x] = pos
+        return Root(x, ())
 
     # ------------------------------------------------------------ negative types
     def neg(self, e: S.Expr) -> Node:
         """An asynchronous (negative) type."""
         if isinstance(e, S.Pi):
-            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var, e.pos)
             p = self._open(e.var, dom)
             body = self.neg(e.body)
             return Pi(e.var, dom, self._close_binder(p, body))
@@ -364,7 +370,7 @@ class Elaborator:
         if isinstance(e, S.One):
             return k()
         if isinstance(e, S.Exists):
-            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var, e.pos)
             p = self._open(e.var, dom)
             body = self._left(e.body, mode, k)
             return Pi(e.var, dom, self._close_binder(p, body))
@@ -386,7 +392,7 @@ class Elaborator:
         if isinstance(e, S.One):
             return One()
         if isinstance(e, S.Exists):
-            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var)
+            dom = self.neg(e.ty) if e.ty is not None else self._type_evar(e.var, e.pos)
             p = self._open(e.var, dom)
             body = self.pos(e.body)
             return Exists(e.var, dom, self._close_binder(p, body))
@@ -740,8 +746,8 @@ class Elaborator:
         if isinstance(s, Aff):
             if not isinstance(e, S.Affine):
                 raise TypeError_(f"expected a monadic object @M of type {self._show(s)}", e.pos)
-            return self.check(e.body, s.body)
-        return self.check(e, s)
+            return self.check(e.body, s.body, "the monadic object")
+        return self.check(e, s, "the monadic object")
 
     def _check_pair(self, e: S.Pair, ty: With) -> Node:
         """``<M, N>`` against ``A & B``: both halves use the same linear variables."""
@@ -755,7 +761,8 @@ class Elaborator:
             raise TypeError_("the two halves of '<M, N>' must use the same linear variables", e.pos)
         return Root(Const("<>"), ())
 
-    def check(self, e: S.Expr, ty: Node) -> Node:
+    def check(self, e: S.Expr, ty: Node, role: str = "the argument") -> Node:
+        """Check ``e`` against ``ty``; ``role`` names what ``e`` is in a type mismatch."""
         ty = deref(ty)
         if self.proof:
             if isinstance(e, (S.Lam, S.PatLam)) and isinstance(ty, (Pi, Imp)):
@@ -804,7 +811,7 @@ class Elaborator:
         if not self.u.unify(ty, got):
             # name the argument by its text: "_describe" would only say "an application"
             what = _describe(e) if isinstance(e, S.Id) else f"'{self._show(term)}'"
-            raise TypeError_(f"type mismatch in the argument {what}", e.pos, self._mismatch(ty, got))
+            raise TypeError_(f"type mismatch in {role} {what}", e.pos, self._mismatch(ty, got))
         return term
 
 
