@@ -85,7 +85,8 @@ def check_fingerprint(path, header: dict, given: dict, force: bool, notes: list[
                     "you trust, name it with --functional")
     if not force:
         raise RoarError(f"{path}: the model given with --model is not the one the trace was recorded on "
-                        f"(fingerprint {given[ALGORITHM][:12]}, recorded {shown(recorded[ALGORITHM][:12])})", None,
+                        f"(its fingerprint is {given[ALGORITHM][:12]}; the trace records "
+                        f"{shown(recorded[ALGORITHM][:12])}, quoted as read)", None,
                         what + ["pass --force to replay it on this model anyway"])
     notes.append("replaying on a model other than the recorded one (--force): " + "; ".join(what))
 

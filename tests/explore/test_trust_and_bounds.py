@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -89,6 +90,9 @@ def test_with_a_model_the_trace_named_module_is_still_not_run(tmp_path):
     with pytest.raises(RoarError) as e:
         with_big_stack(replay, trace, None, MUTUAL)
     assert "not the one the trace was recorded on" in e.value.message
+    # both fingerprints, the trace's quoted as read (it is the untrusted one)
+    assert re.search(r"its fingerprint is [0-9a-f]{12}; the trace records \"000000000000\", quoted as read",
+                     e.value.message)
     assert any("--force" in n for n in e.value.notes)
     with pytest.raises(RoarError) as e:  # forced: replayed on mutual_make, whose first step differs
         with_big_stack(lambda: replay(trace, None, MUTUAL, force=True))
