@@ -88,6 +88,20 @@ fact, plus matches seeded at each produced fact) gave the same steps in the same
 end-to-end gain (170 to 155 µs of enumeration a state) and cost 1.0 to 1.4 KB a waiting state
 on wide frontiers; it is not kept.
 
+Keys by colour rank (2026-11-29, same machine, ``--only conflict,fan-4,fan-6,fan-8 --max-states
+20000``): a canonical key numbers each item it holds through a table kept for the whole search.
+An activation's control fact holds several fresh names (its locals), and with the names numbered
+by their colours (hashes) nearly every state made a new item: the table grew by about 450 bytes
+a visited state on fan-8 (21,460 items at 20,000 states). Numbered by the rank of their colour
+among the state's, the items recur (4,902 items): bytes per state went from 2,789 to 2,186 on
+fan-8 and from 2,196 to 1,807 on fan-6 (fan-4, whose facts hold one name each, 1,823 to 1,681),
+at the same speed within this machine's noise (fan-4 old/new back to back: 1,294/1,145 then
+1,414/1,415 states per CPU-second). What remains at 20,000 states on fan-8, traced by
+``tracemalloc``: the interned facts the kept states share (about 540 bytes a state; a sweep of
+those nothing else refers to freed under a tenth of them, so it is not kept), the keys (290), the
+frozen states' facts (300), the packed steps of the transitions (about 350), the graph's arrays
+(150).
+
 Where it came from: canonical keys by colours when the refinement ends discrete (no sort, no
 renaming of every fact; ``clf/state.py``), 4-byte key words, the merged matcher with a cheaper
 premise selection (``clf/forward.py``), rigid paths kept per family bag, transitions' steps
