@@ -109,6 +109,10 @@ def run_clf(file: Path, seed: int = 0, trace: bool = False, fair: bool = False, 
         sys.stdout.flush()
 
 
+#: the options fast_args reads that take a number: option -> the numbers it takes
+_NUMBER_OPTIONS = {"--seed": r"-?[0-9]+", "--max-steps": r"[0-9]+"}
+
+
 def fast_args(args: list[str]) -> Optional[dict]:
     """The options of ``roar-verify clf ARGS`` read without Typer (whose start-up costs more
     than a small Celf program takes to run), or None when they need Typer (help, errors)."""
@@ -121,24 +125,16 @@ def fast_args(args: list[str]) -> Optional[dict]:
             out[a[2:]] = True
         elif a == "--no-proof":
             out["proof"] = False
-        elif a == "--seed" or a.startswith("--seed="):
-            if a == "--seed":
+        elif a.split("=", 1)[0] in _NUMBER_OPTIONS:
+            name, pattern = a.split("=", 1)[0], _NUMBER_OPTIONS[a.split("=", 1)[0]]
+            if a == name:   # the value in the next argument, or after '='
                 i += 1
                 v = args[i] if i < len(args) else ""
             else:
-                v = a[len("--seed="):]
-            if not re.fullmatch(r"-?[0-9]+", v):
+                v = a[len(name) + 1:]
+            if not re.fullmatch(pattern, v):
                 return None
-            out["seed"] = int(v)
-        elif a == "--max-steps" or a.startswith("--max-steps="):
-            if a == "--max-steps":
-                i += 1
-                v = args[i] if i < len(args) else ""
-            else:
-                v = a[len("--max-steps="):]
-            if not re.fullmatch(r"[0-9]+", v):
-                return None
-            out["max_steps"] = int(v)
+            out[name[2:].replace("-", "_")] = int(v)
         elif a.startswith("-") and a != "-":
             return None
         else:

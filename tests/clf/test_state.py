@@ -77,17 +77,10 @@ def _scrambled(ctx, rnd):
     """A copy of ``ctx`` with its fresh names renamed (new names) and its facts and rules put
     in in another order: isomorphic to ``ctx`` by construction."""
     from roar_formal.clf.context import Context
-    from roar_formal.clf.terms import Node, Param, params_of
+    from roar_formal.clf.terms import Node, Param
     from roar_formal.clf.state import _rename
 
-    names: dict = {}
-    for _m, t, _n in ctx.facts():
-        params_of(t, names)
-    for r in ctx.rules.values():
-        for v in r.env:
-            if isinstance(v, Node):
-                params_of(v, names)
-    ren = {p: Param(p.hint) for p in names}
+    ren = {p: Param(p.hint) for p in _names(ctx)}
     new = lambda t: _rename(t, ren, {}) if isinstance(t, Node) else t
     items = [("f", m, t) for m, t, n in ctx.facts() for _ in range(n)]
     items += [("r", r, None) for r in ctx.rules.values()]
@@ -135,6 +128,7 @@ def test_every_reached_state_and_its_scrambled_copies_have_one_key(rnd):
 
 
 def _names(ctx) -> list:
+    """The fresh names of a state, in the order its facts, then its rules, hold them."""
     from roar_formal.clf.terms import Node, params_of
     names: dict = {}
     for _m, t, _n in ctx.facts():
