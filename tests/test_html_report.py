@@ -76,8 +76,8 @@ def test_the_report_folder_holds_the_page_the_chart_the_trace_and_the_json(repor
     assert {int(r) for r in rows}.isdisjoint(s["step"] for s in silent)
     assert 'class="internal"' not in page
     assert f"{len(silent)} engine steps with no ROAR event are not shown" in page
-    # no temporary file of the atomic writer is left behind
-    assert not [p for p in folder.rglob(".*") if p.is_file()]
+    # no temporary file of the atomic writer is left behind (the one hidden file: the report's list of its files)
+    assert [p.name for p in folder.rglob(".*") if p.is_file()] == [".roar-verify-report"]
 
 
 def test_the_page_names_each_verdict_in_the_summary_and_in_its_section(report):
@@ -97,6 +97,34 @@ def test_an_html_folder_that_cannot_be_written_is_refused_before_any_work(roar_c
     assert code == 2
     assert f"--html {afile / 'report'}: {afile} is not a folder" in err
     assert "states" not in out   # no job ran
+
+
+def test_a_folder_of_the_users_files_is_refused_and_an_earlier_reports_stale_files_go(roar_cli, tmp_path):
+    # a folder of the user's own files: refused before any work, nothing of it touched
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "index.html").write_text("MY NOTES")
+    code, out, err = roar_cli("check", JOB, "--html", mine, "--no-traces")
+    assert code == 2 and f"--html {mine}: the folder holds files no report of roar-verify wrote (index.html)" in err
+    assert "states" not in out and (mine / "index.html").read_text() == "MY NOTES"
+    # a report with a counterexample, then one without into the same folder: the first one's chart
+    # and trace, which the second does not link, are removed; the second one's files are listed
+    rep = tmp_path / "rep"
+    code, _out, _err = roar_cli("check", JOB, "--html", rep, "--traces", tmp_path / "traces")
+    assert code == 0
+    first = {p.relative_to(rep).as_posix() for p in rep.rglob("*") if p.is_file()}
+    assert any(x.startswith("charts/") for x in first) and any(x.startswith("traces/") for x in first)
+    fixed = ROOT / "checker" / "mutual_make_fixed.toml"
+    code, _out, _err = roar_cli("check", fixed, "--html", rep, "--no-traces")
+    assert code == 0
+    second = {p.relative_to(rep).as_posix() for p in rep.rglob("*") if p.is_file()}
+    assert second == {"index.html", "style.css", "report.json", ".roar-verify-report"}
+    assert set((rep / ".roar-verify-report").read_text().split()) == second - {".roar-verify-report"}
+    # a file of the user's put into a report folder: refused too
+    (rep / "notes.txt").write_text("mine")
+    code, _out, err = roar_cli("check", fixed, "--html", rep, "--no-traces")
+    assert code == 2 and "holds files the earlier report there did not write (notes.txt)" in err
+    assert (rep / "notes.txt").read_text() == "mine"
 
 
 def _browser():

@@ -102,6 +102,9 @@ def register(app: typer.Typer) -> None:
         for folder, opt in outputs:
             if folder is not None:   # checked before any work starts
                 check_output_folder(folder, opt, list(paths))
+        if html is not None:   # (a folder of the user's own files is refused before the search, too)
+            from ..verify.html import check_report_folder
+            check_report_folder(html)
         # every job file is checked before anything runs
         jobs = load_jobs(paths, request=request, properties=props, time=time, wait_timeout=wait_timeout,
                          functional=functional, property_files=prop_files)

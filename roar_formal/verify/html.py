@@ -196,20 +196,57 @@ def render_index(results, charts: dict, traces: dict, title: str = "roar-verify 
             + "\n".join(body) + "\n</body></html>\n")
 
 
+#: the file a report folder holds to say an --html report wrote it, listing the report's files
+MARKER = ".roar-verify-report"
+
+
+def check_report_folder(folder: Path, opt: str = "--html") -> list[str]:
+    """Refuse a report folder that holds files no --html report wrote (a user's own files would be
+    overwritten or mixed with the report's); the files an earlier report wrote there (listed in its
+    marker), which the new report replaces."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    present = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
+    if not present:
+        return []
+    marker = folder / MARKER
+    if not marker.is_file():
+        shown = ", ".join(present[:3]) + (f" and {len(present) - 3} more" if len(present) > 3 else "")
+        raise RoarError(f"{opt} {folder}: the folder holds files no report of roar-verify wrote ({shown}); "
+                        "give a new or empty folder, or one an earlier --html report wrote (nothing of "
+                        "yours is overwritten)")
+    try:
+        listed = [x for x in marker.read_text(encoding="utf-8").splitlines() if x]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RoarError(f"{opt} {marker}: cannot read it: {exc}") from None
+    ours = {x for x in listed if not Path(x).is_absolute() and ".." not in Path(x).parts} | {MARKER}
+    others = [x for x in present if x not in ours]
+    if others:
+        raise RoarError(f"{opt} {folder}: the folder holds files the earlier report there did not write "
+                        f"({', '.join(others[:3])}{' ...' if len(others) > 3 else ''}); give a new or empty folder")
+    return sorted(ours - {MARKER})
+
+
 def write_html_report(folder: Path, results, json_docs: list, inputs: tuple = ()) -> Path:
     """Write the report into ``folder``; returns the path of ``index.html``.
 
     ``json_docs`` is what ``check --json`` prints for ``results`` (written as report.json).
-    A file that is an input of the command is never overwritten."""
+    A file that is an input of the command is never overwritten; a folder holding files no report
+    wrote is refused (:func:`check_report_folder`), and an earlier report's files the new one does
+    not write again (charts and traces of verdicts that changed) are removed."""
     from .pictures import render_chart
     folder = Path(folder)
+    earlier = check_report_folder(folder)
     inputs_resolved = {Path(x).resolve() for x in inputs}
+    written: list[str] = []
 
     def put(rel: str, data: bytes) -> None:
         path = folder / rel
         if path.resolve() in inputs_resolved:
             raise RoarError(f"{path}: is an input of this command; not overwritten")
         write_atomic_bytes(path, data)
+        written.append(rel)
 
     charts: dict = {}
     traces: dict = {}
@@ -235,4 +272,10 @@ def write_html_report(folder: Path, results, json_docs: list, inputs: tuple = ()
     put("style.css", _CSS.lstrip().encode("utf-8"))
     put("report.json", (json.dumps(json_docs, indent=2) + "\n").encode("utf-8"))
     put("index.html", render_index(results, charts, traces).encode("utf-8"))
+    write_atomic_bytes(folder / MARKER, ("\n".join(written) + "\n").encode("utf-8"))
+    for rel in set(earlier) - set(written):   # the earlier report's, not this one's: stale
+        try:
+            (folder / rel).unlink()
+        except OSError:
+            pass
     return folder / "index.html"
