@@ -1249,7 +1249,9 @@ class Exploration:
                # (a swarm's graph is complete only when one of its searches covered the whole space)
                "exhaustive": bool(r.graph.complete) and r.job.visited == "exact",
                "visited": r.job.visited, "seconds": round(r.seconds, 4),
-               "memory_mb": round(r.memory_mb, 1), "mismatches": r.mismatches, "verdicts": {}}
+               # what makes the job fail, as the text says it: verdicts other than expected, and
+               # violations nothing expected (a command-line check expects every property to hold)
+               "memory_mb": round(r.memory_mb, 1), "mismatches": r.unexpected, "verdicts": {}}
         robot = self.robot
         if robot is not None:
             out["robot"] = {"setup": robot.describe(), "abstraction": robot.abstraction.as_json(),

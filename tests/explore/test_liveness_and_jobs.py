@@ -194,6 +194,19 @@ def test_json_output(tmp_path, capsys):
     assert doc[0]["verdicts"]["livelock"]["status"] == "violated"
     assert doc[0]["verdicts"]["livelock"]["counterexample"]["shape"] == "lasso"
     assert doc[0]["states"] == 572
+    assert doc[0]["ok"] is True and doc[0]["mismatches"] == []
+
+
+def test_json_names_what_failed_a_check_from_the_command_line(tmp_path, capsys):
+    # no job file: a violation is unexpected, and --json lists it as the text does
+    import json
+    with pytest.raises(SystemExit) as e:
+        main(["check", str(ROOT / "models/philosophers/dl.clf"), "--json", "--no-traces"])
+    assert e.value.code == 1
+    doc = json.loads(capsys.readouterr().out)[0]
+    assert doc["ok"] is False and doc["verdicts"]["deadlock"]["status"] == "violated"
+    assert [m.split(":")[0] for m in doc["mismatches"]] == ["deadlock"]
+    assert "a check from the command line expects every property to hold" in doc["mismatches"][0]
 
 
 def test_saved_counterexamples_replay_on_the_engine(tmp_path, capsys):
