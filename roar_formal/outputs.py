@@ -19,6 +19,7 @@ def check_outputs(outputs: Iterable[tuple[str, Optional[Path]]], inputs: Iterabl
     a folder, under a file or a folder that cannot be written, or named by two options. Missing
     folders on the way are fine: writing the output makes them."""
     reads = {Path(p).resolve() for p in inputs if p is not None}
+    folders = [r for r in reads if r.is_dir()]   # a hyper spec's folder: every file in it is read
     taken: dict[Path, str] = {}
     for option, path in outputs:
         if path is None:
@@ -29,6 +30,10 @@ def check_outputs(outputs: Iterable[tuple[str, Optional[Path]]], inputs: Iterabl
         where = path.resolve()
         if where in reads:
             raise RoarError(f"{option} {path}: is an input of this command; refusing to overwrite it")
+        inside = next((d for d in folders if d in where.parents), None)
+        if inside is not None:
+            raise RoarError(f"{option} {path}: is inside {inside}, a folder this command reads as its input (a "
+                            "hyper spec's): a file written there would be read as part of it; write it elsewhere")
         if where in taken:
             raise RoarError(f"{option} {path}: {taken[where]} writes the same file; give each output its own path")
         taken[where] = option
