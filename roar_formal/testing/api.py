@@ -135,7 +135,21 @@ def parse_faults(faults: Iterable[FaultLike]) -> list["Fault"]:
     """``--fault`` values (``NAME``, ``NAME:K``, ``NAME=OUTCOME``) as faults; a malformed one is a
     :class:`RoarError` saying the expected form. Fault objects pass through; one string is one fault."""
     from ..roar.run import parse_fault
-    return [f if not isinstance(f, str) else parse_fault(f) for f in listed(faults)]
+    out = [f if not isinstance(f, str) else parse_fault(f) for f in listed(faults)]
+    # faults written by hand (strings) that say one thing twice, or two things of one call: refused
+    # before the run (the run used one, then said the other matched no call)
+    seen: dict = {}
+    for raw, f in zip(listed(faults), out):
+        if not isinstance(raw, str):
+            continue
+        key = (f.name, f.call)   # every call (None), or the K-th
+        if key in seen:
+            other = seen[key]
+            what = "is given twice" if str(other) == str(f) else f"conflicts with --fault {other}"
+            raise RoarError(f"--fault {f}: {what} (each call of {f.name} "
+                            f"{'' if f.call is None else f'number {f.call} '}takes one fault)")
+        seen[key] = f
+    return out
 
 
 # Specs and models given as text live in one temporary folder of the process: the explorer

@@ -145,6 +145,22 @@ def test_fault_on_a_call_that_never_happens_exits_2(capsys, case, fault, fragmen
     assert_user_error(code, err, fragment, fault)
 
 
+@pytest.mark.parametrize("faults,fragment", [
+    (["compute_plan", "compute_plan=failure"], "--fault compute_plan=failure: conflicts with --fault compute_plan"),
+    (["compute_plan:2", "compute_plan:2"], "--fault compute_plan:2: is given twice"),
+    (["compute_plan:2=failure", "compute_plan:2"], "--fault compute_plan:2: conflicts with --fault compute_plan:2=failure"),
+])
+def test_two_faults_of_one_call_are_refused_before_the_run(capsys, faults, fragment):
+    # the run took one and then said the other matched no call
+    args = [a for f in faults for a in ("--fault", f)]
+    code, out, err = run_cli(capsys, SPA, *args)
+    assert_user_error(code, err, fragment, faults[0].split(":")[0].split("=")[0])
+    assert out == ""   # nothing ran
+    # faults of two calls of one function are two faults
+    code, out, err = run_cli(capsys, SPA, "--fault", "compute_plan:1", "--fault", "compute_plan:2")
+    assert code in (0, 1) and "request " in out, err
+
+
 def test_missing_spec_exits_2(capsys, tmp_path):
     code, out, err = cli(capsys, "run", tmp_path / "nowhere.roar", "--request", DEMO[1])
     assert_user_error(code, err, "nowhere.roar", "no such file")
