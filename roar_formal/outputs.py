@@ -30,7 +30,7 @@ def check_outputs(outputs: Iterable[tuple[str, Optional[Path]]], inputs: Iterabl
         where = path.resolve()
         if where in reads:
             raise RoarError(f"{option} {path}: is an input of this command; refusing to overwrite it")
-        inside = next((d for d in folders if d in where.parents), None)
+        inside = next((d for d in folders if read_by_spec_folder(d, where, False)), None)
         if inside is not None:
             raise RoarError(f"{option} {path}: is inside {inside}, a folder this command reads as its input (a "
                             "hyper spec's): a file written there would be read as part of it; write it elsewhere")
@@ -44,3 +44,16 @@ def check_outputs(outputs: Iterable[tuple[str, Optional[Path]]], inputs: Iterabl
             raise RoarError(f"{option} {path}: {parent} is not a folder")
         if not os.access(parent, os.W_OK | os.X_OK):
             raise RoarError(f"{option} {path}: {parent} is not writable")
+
+
+def read_by_spec_folder(folder: Path, where: Path, is_folder: bool) -> bool:
+    """Would a file at ``where`` (every file in it, when ``is_folder``) be read as part of the hyper
+    spec in ``folder``? Its agents' ``.ability`` files are, and every file of an agent's folder
+    (``folder/AGENT/...``: its tasks and recipes); other files at the top (a README, a compiled
+    program) are not."""
+    if folder not in where.parents:
+        return False
+    parts = where.relative_to(folder).parts
+    if (folder / (parts[0] + ".ability")).is_file() and (len(parts) > 1 or is_folder):
+        return True
+    return len(parts) == 1 and not is_folder and where.suffix == ".ability"

@@ -283,8 +283,8 @@ def check_output_folder(folder: Path, option: str, inputs: list[Path]) -> None:
     resolved = {Path(p).resolve() for p in inputs}
     if folder.resolve() in resolved:
         raise RoarError(f"{option} {folder}: is an input of this command")
-    from .jobs import is_model_path   # (a folder of job files may hold pictures; a hyper spec's may not)
-    inside = next((d for d in resolved if d.is_dir() and is_model_path(d) and d in folder.resolve().parents), None)
+    from ..outputs import read_by_spec_folder
+    inside = next((d for d in resolved if d.is_dir() and read_by_spec_folder(d, folder.resolve(), True)), None)
     if inside is not None:
         raise RoarError(f"{option} {folder}: is inside {inside}, a folder this command reads as its input (a hyper "
                         "spec's): files written there would be read as part of it; write them elsewhere")

@@ -182,18 +182,20 @@ def test_replay_writes_the_task_tree_of_a_counterexample(tmp_path, roar_cli):
 
 
 def test_no_output_is_written_inside_a_hyper_spec_folder(tmp_path, roar_cli):
-    # a file written into a hyper spec's folder would be read as part of the spec next time (a
-    # trace there was read as a task): every command refuses it before any work, as an input
+    # a file written into a hyper spec's agent folder (or a new .ability file) would be read as part
+    # of the spec next time (a trace there was read as a task): every command refuses it before any
+    # work, as an input; a file at the folder's top is not read (test_run_cli: compile -o loco/x.clf)
     import shutil
     spec = tmp_path / "demo_loco"
     shutil.copytree(ROOT / "models" / "demo_loco", spec)
     before = sorted(p.relative_to(spec) for p in spec.rglob("*"))
     req = "demo_loco::pos == demo_loco::goal where demo_loco::goal == 5"
     for argv, opt in [(("run", spec, "-r", req, "--trace", spec / "demo_loco" / "run.jsonl"), "--trace"),
-                      (("run", spec, "-r", req, "--png", spec / "run.png"), "--png"),
+                      (("run", spec, "-r", req, "--png", spec / "demo_loco" / "move" / "run.png"), "--png"),
                       (("compile", spec, "-r", req, "-o", spec / "demo_loco" / "m.clf"), "--output"),
-                      (("check", spec, "-r", req, "--png", spec / "pics"), "--png"),
-                      (("check", spec, "-r", req, "--html", spec / "report"), "--html")]:
+                      (("compile", spec, "-r", req, "-o", spec / "extra.ability"), "--output"),
+                      (("check", spec, "-r", req, "--png", spec / "demo_loco"), "--png"),
+                      (("check", spec, "-r", req, "--html", spec / "demo_loco" / "report"), "--html")]:
         code, out, err = roar_cli(*argv)
         assert code == 2 and f"{opt} " in err and "a folder this command reads as its input" in err, (argv, err)
         assert "states" not in out
