@@ -252,11 +252,11 @@ class _Build(Transformer):
     def query(self, c):
         kw, d, e, l, a, goal = c
         parened = self._item_read()
-        head, bare = goal, id(goal) not in parened
+        head, bare = goal, id(goal) not in parened   # (parenthesised on the way down: the goal's head)
         while isinstance(head, s.App):
             head = head.fn
             bare = bare and id(head) not in parened
-        if head is not goal and bare and isinstance(head, (s.One, s.Num)):
+        if bare and s.headed_by_number(goal):
             # `#query * 1 * 1 1 a.`: a fifth bound read as the type's head (Celf's parser refuses it too)
             raise SyntaxError_("a #query has four bounds (depth, expected solutions, solutions to look "
                                "for, attempts) and then its type; this one has a fifth bound", head.pos)

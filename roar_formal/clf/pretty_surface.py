@@ -103,11 +103,8 @@ def format_item(item: s.Item) -> str:
         return text + "."
     if isinstance(item, s.Query):
         bounds = " ".join(_bound(b) for b in (item.depth, item.expected, item.look, item.attempts))
-        head = item.goal
-        while isinstance(head, s.App):
-            head = head.fn
         goal = format_expr(item.goal)
-        if head is not item.goal and isinstance(head, (s.One, s.Num)):
+        if s.headed_by_number(item.goal):
             goal = f"({goal})"   # bare, `1 a` after the bounds reads as a fifth bound
         return f"#query {bounds} {goal}."
     if isinstance(item, s.Exec):

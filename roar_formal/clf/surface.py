@@ -276,3 +276,13 @@ Item = Union[Decl, Query, Exec, Mode]
 class Program:
     file: str
     items: tuple[Item, ...]
+
+
+def headed_by_number(goal: "Expr") -> bool:
+    """Is ``goal`` an application whose head is ``1`` or a number? After a #query's four bounds,
+    written bare, such a head reads as a fifth bound (the parser refuses it; the printer writes the
+    goal in parentheses)."""
+    head = goal
+    while isinstance(head, App):
+        head = head.fn
+    return head is not goal and isinstance(head, (One, Num))

@@ -245,8 +245,14 @@ def write_html_report(folder: Path, results, json_docs: list, inputs: tuple = ()
         path = folder / rel
         if path.resolve() in inputs_resolved:
             raise RoarError(f"{path}: is an input of this command; not overwritten")
+        if rel not in earlier:   # listed before it is written: a report stopped half-way is still ours
+            _mark(sorted(set(earlier) | set(written) | {rel}))
         write_atomic_bytes(path, data)
         written.append(rel)
+
+    def _mark(files: list) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        write_atomic_bytes(folder / MARKER, ("\n".join(files) + "\n").encode("utf-8"))
 
     charts: dict = {}
     traces: dict = {}
@@ -272,7 +278,7 @@ def write_html_report(folder: Path, results, json_docs: list, inputs: tuple = ()
     put("style.css", _CSS.lstrip().encode("utf-8"))
     put("report.json", (json.dumps(json_docs, indent=2) + "\n").encode("utf-8"))
     put("index.html", render_index(results, charts, traces).encode("utf-8"))
-    write_atomic_bytes(folder / MARKER, ("\n".join(written) + "\n").encode("utf-8"))
+    _mark(written)
     for rel in set(earlier) - set(written):   # the earlier report's, not this one's: stale
         try:
             (folder / rel).unlink()
